@@ -1,0 +1,65 @@
+//! The number interface the renderer is written against.
+//!
+//! Everything that a density can change (extinction, transmittance, path
+//! weights, pixel values) is computed in a type `R: Real`; everything that is
+//! a sampling decision (positions, directions, distances) stays `f64`
+//! (DESIGN.md §3, detached sampling). `f64` implements `Real` here; the dual
+//! and reverse-mode types implement it in their own modules.
+
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub};
+
+/// A scalar that may carry derivatives. Narrow on purpose: only what the
+/// transport code needs. Mixed arithmetic with plain `f64` never creates
+/// tangent work for the plain operand.
+pub trait Real:
+    Copy
+    + Send
+    + Sync
+    + 'static
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + Add<f64, Output = Self>
+    + Sub<f64, Output = Self>
+    + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
+    + AddAssign
+    + MulAssign
+{
+    /// A constant (no derivative).
+    fn cst(x: f64) -> Self;
+    /// The primal value, used for sampling decisions.
+    fn re(&self) -> f64;
+    /// `e^self`.
+    fn exp(self) -> Self;
+    /// `(1 - e^{-self * h}) / self`: the integral of `e^{-self t}` over
+    /// `t in [0, h]`. Finite for `self = 0` (value `h`) and for huge `self`.
+    fn one_minus_exp_over(self, h: f64) -> Self {
+        let x = self.re() * h;
+        if x.abs() < 1e-4 {
+            // Series h (1 - x/2 + x^2/6): avoids 0/0 and keeps the tangent
+            // (-h^2/2 at zero) instead of a NaN.
+            let s = self * h;
+            (Self::cst(1.0) - s * 0.5 + s * s * (1.0 / 6.0)) * h
+        } else {
+            (Self::cst(1.0) - (-(self * h)).exp()) / self
+        }
+    }
+}
+
+impl Real for f64 {
+    #[inline]
+    fn cst(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn re(&self) -> f64 {
+        *self
+    }
+    #[inline]
+    fn exp(self) -> Self {
+        f64::exp(self)
+    }
+}

@@ -1,0 +1,4 @@
+//! Files: `.npy` arrays, PNG previews.
+
+pub mod npy;
+pub mod png;

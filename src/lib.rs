@@ -1,0 +1,24 @@
+//! # dualphoton
+//!
+//! Recovers the 3-D density of smoke and fog from photographs by
+//! differentiating a photon-mapping renderer with forward-mode dual numbers.
+//!
+//! Data flow: a [`scene::Scene`] (density grid, medium, point lights,
+//! pinhole cameras) is rendered by [`render`] into radiance images: single
+//! scattering by ray marching, higher orders by photon mapping; an unbiased
+//! path tracer is the reference. Conventions (right-handed, y up, voxel
+//! centres, units) are those of `DESIGN.md` §1 and are documented on the
+//! types that carry them.
+
+#![warn(missing_docs)]
+
+pub mod ad;
+pub mod error;
+pub mod io;
+pub mod math;
+pub mod render;
+pub mod rng;
+pub mod scene;
+pub mod volume;
+
+pub use error::{Error, Result};

@@ -1,0 +1,83 @@
+//! Scenes: the medium, point lights, cameras and render knobs, read from and
+//! written to the JSON + `.npy` format of DESIGN.md §1, plus the paper's rig.
+
+pub mod camera;
+pub mod file;
+pub mod rig;
+
+pub use camera::Camera;
+
+use crate::math::Vec3;
+use crate::volume::Grid;
+
+/// Optical properties shared by the whole volume.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Medium {
+    /// Extinction per unit density per unit length: `sigma_t = sigma_t_scale * density`; >= 0.
+    pub sigma_t_scale: f64,
+    /// Single-scattering albedo `sigma_s / sigma_t`, in [0, 1].
+    pub albedo: f64,
+    /// Henyey-Greenstein asymmetry, in (-1, 1); > 0 scatters forward.
+    pub g: f64,
+    /// Most scattering events on a path; 1 = single scattering only.
+    pub max_order: u32,
+}
+
+/// An isotropic point light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Light {
+    /// Position (world units).
+    pub position: Vec3,
+    /// Radiant intensity (W/sr), >= 0.
+    pub intensity: f64,
+}
+
+/// The project's own render knobs; every one has a default.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Photons emitted in all (split among lights by the power that reaches the volume).
+    pub photons: u64,
+    /// Photon gathering radius (world units); default 2 voxel sizes.
+    pub kernel_radius: Option<f64>,
+    /// Ray-marching step (world units); default half the smallest voxel size.
+    pub step: Option<f64>,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// Camera samples per pixel of the photon-mapping renderer (jittered).
+    pub spp: u32,
+    /// Samples per pixel of the reference path tracer.
+    pub path_spp: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings { photons: 300_000, kernel_radius: None, step: None, seed: 0, spp: 1, path_spp: 256 }
+    }
+}
+
+impl RenderSettings {
+    /// The kernel radius to use on `density` (explicit or default).
+    pub fn kernel_radius_for(&self, density: &Grid<f64>) -> f64 {
+        self.kernel_radius.unwrap_or_else(|| 2.0 * density.voxel_size().max())
+    }
+
+    /// The ray-marching step to use on `density` (explicit or default).
+    pub fn step_for(&self, density: &Grid<f64>) -> f64 {
+        self.step.unwrap_or_else(|| 0.5 * density.voxel_size().min())
+    }
+}
+
+/// A complete, validated scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Density on the volume's box (`Grid::lo`, `Grid::hi` are `bbox_min`, `bbox_max`).
+    pub density: Grid<f64>,
+    /// Optical properties.
+    pub medium: Medium,
+    /// Point lights.
+    pub lights: Vec<Light>,
+    /// Cameras, in file order (`cam0`, `cam1`, ...).
+    pub cameras: Vec<Camera>,
+    /// Render knobs.
+    pub render: RenderSettings,
+}

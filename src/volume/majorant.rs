@@ -1,0 +1,171 @@
+//! A coarse grid of density upper bounds over blocks of voxels: it lets ray
+//! marching skip empty space and gives delta tracking a tight majorant.
+
+use super::grid::Grid;
+use crate::math::{Ray, Vec3};
+
+/// Upper bounds of the trilinear density over cubic blocks of `block` voxels.
+#[derive(Clone, Debug)]
+pub struct Majorant {
+    lo: Vec3,
+    /// World size of one block along x, y, z.
+    cell: Vec3,
+    /// Number of blocks along x, y, z.
+    n: [usize; 3],
+    /// Bound per block, flat index `(bz * ny + by) * nx + bx`.
+    max: Vec<f64>,
+}
+
+impl Majorant {
+    /// Bounds for `grid`, in blocks of `block` voxels per axis.
+    pub fn build(grid: &Grid<f64>, block: usize) -> Self {
+        let block = block.max(1);
+        let [nz, ny, nx] = grid.shape;
+        let n = [nx.div_ceil(block), ny.div_ceil(block), nz.div_ceil(block)];
+        let cell = grid.voxel_size() * block as f64;
+        // Points in a block read voxels one beyond it on each side (trilinear reach).
+        let range = |m: usize, len: usize| (m * block).saturating_sub(1)..((m + 1) * block + 1).min(len);
+        let mut max = vec![0.0; n[0] * n[1] * n[2]];
+        for bz in 0..n[2] {
+            for by in 0..n[1] {
+                for bx in 0..n[0] {
+                    let mut m = 0.0f64;
+                    for k in range(bz, nz) {
+                        for j in range(by, ny) {
+                            for i in range(bx, nx) {
+                                m = m.max(grid.data[grid.index(k, j, i)]);
+                            }
+                        }
+                    }
+                    max[(bz * n[1] + by) * n[0] + bx] = m;
+                }
+            }
+        }
+        Majorant { lo: grid.lo, cell, n, max }
+    }
+
+    /// The largest bound of all blocks.
+    pub fn global_max(&self) -> f64 {
+        self.max.iter().fold(0.0, |a, &b| a.max(b))
+    }
+
+    /// The box spanned by the blocks with a non-zero bound, or `None` if all are empty.
+    pub fn occupied_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut lo = [usize::MAX; 3];
+        let mut hi = [0usize; 3];
+        let mut any = false;
+        for bz in 0..self.n[2] {
+            for by in 0..self.n[1] {
+                for bx in 0..self.n[0] {
+                    if self.max[(bz * self.n[1] + by) * self.n[0] + bx] > 0.0 {
+                        any = true;
+                        for (a, b) in [bx, by, bz].into_iter().enumerate() {
+                            lo[a] = lo[a].min(b);
+                            hi[a] = hi[a].max(b + 1);
+                        }
+                    }
+                }
+            }
+        }
+        any.then(|| {
+            let f = |b: [usize; 3]| self.lo + Vec3::new(b[0] as f64 * self.cell.x, b[1] as f64 * self.cell.y, b[2] as f64 * self.cell.z);
+            (f(lo), f(hi))
+        })
+    }
+
+    /// Visits the blocks crossed by `ray` over `[t0, t1]` (a part of the
+    /// ray inside the grid's box) in order, as `(ta, tb, bound)`; stops when
+    /// `visit` returns false.
+    pub fn walk(&self, ray: &Ray, t0: f64, t1: f64, mut visit: impl FnMut(f64, f64, f64) -> bool) {
+        if t1 <= t0 {
+            return;
+        }
+        let p = ray.at(t0);
+        let mut idx = [0i64; 3];
+        let mut step = [0i64; 3];
+        let mut t_next = [f64::INFINITY; 3];
+        let mut t_delta = [f64::INFINITY; 3];
+        for a in 0..3 {
+            let u = ((p[a] - self.lo[a]) / self.cell[a]).floor() as i64;
+            idx[a] = u.clamp(0, self.n[a] as i64 - 1);
+            let d = ray.dir[a];
+            if d > 0.0 {
+                step[a] = 1;
+                t_next[a] = t0 + ((self.lo[a] + (idx[a] + 1) as f64 * self.cell[a]) - p[a]) / d;
+                t_delta[a] = self.cell[a] / d;
+            } else if d < 0.0 {
+                step[a] = -1;
+                t_next[a] = t0 + ((self.lo[a] + idx[a] as f64 * self.cell[a]) - p[a]) / d;
+                t_delta[a] = -self.cell[a] / d;
+            }
+        }
+        let mut t = t0;
+        loop {
+            let a = if t_next[0] < t_next[1] {
+                if t_next[0] < t_next[2] { 0 } else { 2 }
+            } else if t_next[1] < t_next[2] {
+                1
+            } else {
+                2
+            };
+            let t_exit = t_next[a].min(t1);
+            let flat = ((idx[2] as usize) * self.n[1] + idx[1] as usize) * self.n[0] + idx[0] as usize;
+            if t_exit > t && !visit(t, t_exit, self.max[flat]) {
+                return;
+            }
+            if t_next[a] >= t1 {
+                return;
+            }
+            t = t_exit;
+            idx[a] += step[a];
+            if idx[a] < 0 || idx[a] >= self.n[a] as i64 {
+                return;
+            }
+            t_next[a] += t_delta[a];
+        }
+    }
+
+    /// The parts of `[t0, t1]` along `ray` in non-empty blocks, merged into
+    /// maximal intervals, appended to `out` as `(ta, tb)`.
+    pub fn occupied_intervals(&self, ray: &Ray, t0: f64, t1: f64, out: &mut Vec<(f64, f64)>) {
+        self.walk(ray, t0, t1, |ta, tb, m| {
+            if m > 0.0 {
+                match out.last_mut() {
+                    Some(last) if last.1 >= ta => last.1 = tb,
+                    _ => out.push((ta, tb)),
+                }
+            }
+            true
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bounds_cover_trilinear_values_and_walk_is_contiguous() {
+        let n = 10;
+        let mut data = vec![0.0; n * n * n];
+        data[(5 * n + 5) * n + 5] = 2.0;
+        let g = Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [n, n, n], data);
+        let m = Majorant::build(&g, 4);
+        let ray = Ray { origin: Vec3::new(-1.0, 0.03, 0.01), dir: Vec3::new(1.0, 0.02, 0.01).normalize() };
+        let (t0, t1) = crate::math::intersect_box(&ray, &g.lo, &g.hi).unwrap();
+        let mut last = t0;
+        m.walk(&ray, t0, t1, |ta, tb, bound| {
+            assert!((ta - last).abs() < 1e-12);
+            last = tb;
+            for s in 0..=20 {
+                let t = ta + (tb - ta) * s as f64 / 20.0;
+                assert!(g.at(&ray.at(t)) <= bound + 1e-12);
+            }
+            true
+        });
+        assert!((last - t1).abs() < 1e-9);
+        let mut iv = vec![];
+        m.occupied_intervals(&ray, t0, t1, &mut iv);
+        assert_eq!(iv.len(), 1);
+    }
+}
