@@ -1,1 +1,8 @@
-//! Renderers.
+//! Renderers: single scattering by ray marching, orders 2..max_order by
+//! photon mapping, and an unbiased volumetric path tracer as the reference.
+//! Renderers compute images; they write no files.
+
+pub mod image;
+pub mod path;
+
+pub use image::Image;

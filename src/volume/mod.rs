@@ -7,3 +7,5 @@ pub mod phase;
 
 pub use grid::{Grid, Stencil};
 pub use majorant::Majorant;
+pub mod plume;
+pub mod scalarflow;

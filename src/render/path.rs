@@ -1,0 +1,1 @@
+//! Reference volumetric path tracer (placeholder, being written).

@@ -1,0 +1,1 @@
+//! Built-in smoke plume (placeholder, being written).

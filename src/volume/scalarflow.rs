@@ -1,0 +1,1 @@
+//! ScalarFlow loader (placeholder, being written).
