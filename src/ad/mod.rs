@@ -34,6 +34,11 @@ pub trait Real:
     fn re(&self) -> f64;
     /// `e^self`.
     fn exp(self) -> Self;
+    /// `e^self - 1`, accurate near 0.
+    fn exp_m1(self) -> Self;
+    /// True if the value and every derivative are exactly zero, so that
+    /// work multiplied by it can be left out without changing any result.
+    fn is_exact_zero(&self) -> bool;
     /// `(1 - e^{-self * h}) / self`: the integral of `e^{-self t}` over
     /// `t in [0, h]`. Finite for `self = 0` (value `h`) and for huge `self`.
     fn one_minus_exp_over(self, h: f64) -> Self {
@@ -61,5 +66,13 @@ impl Real for f64 {
     #[inline]
     fn exp(self) -> Self {
         f64::exp(self)
+    }
+    #[inline]
+    fn exp_m1(self) -> Self {
+        f64::exp_m1(self)
+    }
+    #[inline]
+    fn is_exact_zero(&self) -> bool {
+        *self == 0.0
     }
 }

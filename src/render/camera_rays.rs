@@ -1,0 +1,92 @@
+//! The camera-ray integral `L = ∫ T(0,t) sigma_s(x_t) L_s(x_t, -w) dt`
+//! (DESIGN.md §2) by ray marching: per step, single scattering towards every
+//! light with a marched shadow ray, plus the photon estimate of the higher
+//! orders read from a grid. Generic over `R: Real`: the density carries
+//! derivatives, the step placement does not.
+
+use super::march::Marcher;
+use crate::ad::Real;
+use crate::math::Ray;
+use crate::rng::{Purpose, Rng};
+use crate::scene::{Camera, Light, Medium};
+use crate::volume::phase::hg_eval;
+use crate::volume::Grid;
+use rayon::prelude::*;
+
+/// Everything a camera ray reads.
+pub struct CameraRays<'a, R: Real> {
+    /// The density (weights and derivatives).
+    pub density: &'a Grid<R>,
+    /// Optical properties.
+    pub medium: &'a Medium,
+    /// Point lights (those of zero intensity are skipped).
+    pub lights: &'a [Light],
+    /// Occupied-space marching.
+    pub marcher: &'a Marcher<'a>,
+    /// Jittered samples per pixel.
+    pub spp: u32,
+    /// Seed of the pixel streams.
+    pub seed: u64,
+}
+
+/// Transmittance below which a camera ray stops: nothing behind it can reach 1e-12 of the front.
+const T_MIN: f64 = 1e-12;
+
+impl<R: Real> CameraRays<'_, R> {
+    /// The image of `camera`; `first_pixel` is the index of its first pixel
+    /// among all cameras of the scene (it names the random streams), and
+    /// `multiple` the photon estimate towards this camera, if any.
+    pub fn image(&self, camera: &Camera, first_pixel: u64, multiple: Option<&Grid<R>>) -> Vec<R> {
+        (0..camera.pixels())
+            .into_par_iter()
+            .with_min_len(16)
+            .map(|p| {
+                let mut rng = Rng::new(self.seed, Purpose::Pixel, first_pixel + p as u64);
+                let (x, y) = ((p % camera.width) as f64, (p / camera.width) as f64);
+                let mut sum = R::cst(0.0);
+                for _ in 0..self.spp {
+                    let ray = camera.ray(x + rng.uniform(), y + rng.uniform());
+                    sum += self.radiance(&ray, rng.uniform(), rng.uniform(), multiple);
+                }
+                sum * (1.0 / self.spp as f64)
+            })
+            .collect()
+    }
+
+    /// Radiance arriving along `-ray.dir` at the ray's origin.
+    pub fn radiance(&self, ray: &Ray, jitter: f64, shadow_jitter: f64, multiple: Option<&Grid<R>>) -> R {
+        let scale = self.medium.sigma_t_scale;
+        let w_out = -ray.dir;
+        let mut transmittance = R::cst(1.0);
+        let mut radiance = R::cst(0.0);
+        self.marcher.steps(ray, f64::INFINITY, jitter, |s| {
+            let x = ray.at(s.sample);
+            let sigma_t = self.density.at(&x) * scale;
+            if let Some(ms) = multiple {
+                let m = ms.at(&x);
+                if !m.is_exact_zero() {
+                    // Photons estimate sigma_t L directly: weight by the mean transmittance over the step.
+                    radiance += transmittance * sigma_t.one_minus_exp_over(s.h) * m;
+                }
+            }
+            if !sigma_t.is_exact_zero() && self.medium.albedo > 0.0 {
+                let mut single = R::cst(0.0);
+                for light in self.lights.iter().filter(|l| l.intensity > 0.0) {
+                    let to_light = light.position - x;
+                    let dist2 = to_light.norm_squared();
+                    if dist2 == 0.0 {
+                        continue; // A sample exactly on a point light: a set of measure zero.
+                    }
+                    let mu = (-to_light / dist2.sqrt()).dot(&w_out);
+                    let t = self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter);
+                    single += t * (hg_eval(self.medium.g, mu) * light.intensity / dist2);
+                }
+                // ∫ over the step of T sigma_s L_s = T_before * albedo * (1 - e^{-sigma_t h}) * L_s.
+                radiance += transmittance * (-(-(sigma_t * s.h)).exp_m1()) * single * self.medium.albedo;
+            }
+            transmittance *= (-(sigma_t * s.h)).exp();
+            transmittance.re() > T_MIN
+        });
+        radiance
+    }
+}

@@ -1,0 +1,87 @@
+//! Ray marching through the occupied part of the volume: fixed steps inside
+//! the majorant's non-empty intervals, one jittered sample per step, the
+//! density piecewise constant per step. Step placement never depends on the
+//! density values (only on which blocks are empty), so the marched
+//! quantities are smooth functions of the densities.
+
+use crate::ad::Real;
+use crate::math::{intersect_box, Ray, Vec3};
+use crate::volume::{Grid, Majorant};
+
+/// One ray-march step: it covers `[start, start + h]` and is represented by
+/// the density at `sample`.
+#[derive(Clone, Copy, Debug)]
+pub struct Step {
+    /// Ray parameter where the step begins.
+    pub start: f64,
+    /// Step length (> 0).
+    pub h: f64,
+    /// Ray parameter of the step's density sample, in `[start, start + h)`.
+    pub sample: f64,
+}
+
+/// What marching needs: where the medium can be non-empty and the step length.
+pub struct Marcher<'a> {
+    /// Bounds of the density (of the sampling density, DESIGN.md §3).
+    pub majorant: &'a Majorant,
+    /// Box of the volume.
+    pub lo: Vec3,
+    /// Box of the volume.
+    pub hi: Vec3,
+    /// Longest step (world units).
+    pub step: f64,
+}
+
+impl<'a> Marcher<'a> {
+    /// A marcher over `grid`'s box with blocks from `majorant`.
+    pub fn new(grid: &Grid<f64>, majorant: &'a Majorant, step: f64) -> Self {
+        Marcher { majorant, lo: grid.lo, hi: grid.hi, step }
+    }
+
+    /// Calls `visit` for every step along `ray` over `[0, t_max]` inside
+    /// non-empty blocks, in order; `jitter` in [0, 1) places the sample in
+    /// each step. Stops early when `visit` returns false.
+    pub fn steps(&self, ray: &Ray, t_max: f64, jitter: f64, mut visit: impl FnMut(Step) -> bool) {
+        let Some((t0, t1)) = intersect_box(ray, &self.lo, &self.hi) else { return };
+        let t1 = t1.min(t_max);
+        if t1 <= t0 {
+            return;
+        }
+        let mut intervals: Vec<(f64, f64)> = Vec::new();
+        self.majorant.occupied_intervals(ray, t0, t1, &mut intervals);
+        for (ta, tb) in intervals {
+            let n = ((tb - ta) / self.step).ceil().max(1.0);
+            let h = (tb - ta) / n;
+            for m in 0..n as usize {
+                let start = ta + m as f64 * h;
+                if !visit(Step { start, h, sample: start + jitter * h }) {
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Optical depth `∫ sigma_t dt` along `ray` over `[0, t_max]` with
+    /// `sigma_t = scale * density`. Stops adding once the primal exceeds
+    /// `cutoff` (beyond which `exp(-depth)` is zero in `f64`).
+    pub fn optical_depth<R: Real>(&self, density: &Grid<R>, scale: f64, ray: &Ray, t_max: f64, jitter: f64) -> R {
+        const CUTOFF: f64 = 800.0;
+        let mut depth = R::cst(0.0);
+        self.steps(ray, t_max, jitter, |s| {
+            depth += density.at(&ray.at(s.sample)) * (scale * s.h);
+            depth.re() < CUTOFF
+        });
+        depth
+    }
+
+    /// Transmittance from `from` to `to` in a straight line.
+    pub fn transmittance<R: Real>(&self, density: &Grid<R>, scale: f64, from: &Vec3, to: &Vec3, jitter: f64) -> R {
+        let d = to - from;
+        let dist = d.norm();
+        if dist == 0.0 {
+            return R::cst(1.0);
+        }
+        let ray = Ray { origin: *from, dir: d / dist };
+        (-self.optical_depth(density, scale, &ray, dist, jitter)).exp()
+    }
+}

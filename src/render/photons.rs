@@ -1,0 +1,167 @@
+//! Photon tracing (DESIGN.md §2): photons leave the point lights towards the
+//! occupied part of the volume, every free flight is forced to end in a
+//! collision inside the medium (weight `1 - T` of the whole segment, so no
+//! photon is wasted on escaping), directions follow Henyey-Greenstein, and a
+//! photon is stored at its 2nd..max_order-th collision with the power that
+//! arrives there (the 1st collision is single scattering, computed directly).
+
+use super::march::{Marcher, Step};
+use crate::math::{cone_solid_angle, sample_cone, Ray, Vec3};
+use crate::rng::{Purpose, Rng};
+use crate::scene::{Light, Medium};
+use crate::volume::phase::hg_sample;
+use crate::volume::{Grid, Majorant};
+use rayon::prelude::*;
+
+/// A stored photon: the flux arriving at a collision.
+#[derive(Clone, Copy, Debug)]
+pub struct Photon {
+    /// Collision position.
+    pub pos: Vec3,
+    /// Propagation direction of the arriving light (unit).
+    pub dir: Vec3,
+    /// Power (W) arriving, before the albedo of this collision.
+    pub power: f64,
+    /// Index of the emitted photon whose path this is.
+    pub path: u32,
+    /// Collision number along the path (2..=max_order); the scattering order it feeds.
+    pub order: u8,
+}
+
+/// How one light emits: uniformly into the cone around the occupied region.
+#[derive(Clone, Debug)]
+pub struct Emitter {
+    /// Light position.
+    pub position: Vec3,
+    /// Cone axis (unit), from the light to the occupied region's centre.
+    pub axis: Vec3,
+    /// Cosine of the cone's half-angle (-1: the whole sphere).
+    pub cos_max: f64,
+    /// Power sent into the cone (W): intensity times solid angle.
+    pub power: f64,
+}
+
+/// Emitters for `lights` aimed at the occupied region (`None`: the volume
+/// is empty and no light can reach anything). Lights of zero intensity get
+/// zero power and hence no photons.
+pub fn emitters(lights: &[Light], majorant: &Majorant) -> Vec<Emitter> {
+    let Some((lo, hi)) = majorant.occupied_bounds() else { return vec![] };
+    let centre = (lo + hi) * 0.5;
+    let radius = (hi - lo).norm() * 0.5;
+    lights
+        .iter()
+        .map(|l| {
+            let to = centre - l.position;
+            let d = to.norm();
+            let (axis, cos_max) = if d <= radius * 1.000001 {
+                (Vec3::new(0.0, 0.0, 1.0), -1.0)
+            } else {
+                (to / d, (1.0 - (radius / d).powi(2)).max(0.0).sqrt())
+            };
+            Emitter { position: l.position, axis, cos_max, power: l.intensity * cone_solid_angle(cos_max) }
+        })
+        .collect()
+}
+
+/// Everything photon tracing reads.
+pub struct Tracer<'a> {
+    /// Density the sampling decisions use.
+    pub density: &'a Grid<f64>,
+    /// Optical properties.
+    pub medium: &'a Medium,
+    /// Occupied-space marching.
+    pub marcher: &'a Marcher<'a>,
+    /// The lights' emission cones.
+    pub emitters: &'a [Emitter],
+}
+
+impl Tracer<'_> {
+    /// Traces `count` photons with streams of `seed`; stored photons in
+    /// path order, whatever the number of threads. Empty at max_order 1.
+    pub fn trace(&self, count: u64, seed: u64) -> Vec<Photon> {
+        let total: f64 = self.emitters.iter().map(|e| e.power).sum();
+        if self.medium.max_order < 2 || count == 0 || total <= 0.0 || self.medium.albedo == 0.0 {
+            return vec![];
+        }
+        const CHUNK: u64 = 1024;
+        let chunks: Vec<Vec<Photon>> = (0..count.div_ceil(CHUNK) as usize)
+            .into_par_iter()
+            .map(|c| {
+                let range = c as u64 * CHUNK..((c as u64 + 1) * CHUNK).min(count);
+                let mut out = Vec::with_capacity(range.clone().count() * (self.medium.max_order as usize - 1));
+                let mut steps = Vec::new();
+                for i in range {
+                    self.trace_one(i, count, total, seed, &mut steps, &mut out);
+                }
+                out
+            })
+            .collect();
+        chunks.into_iter().flatten().collect()
+    }
+
+    /// The emitter of photon `i` of `count`: stratified over the lights' power.
+    fn emitter_of(&self, i: u64, count: u64, total: f64) -> &Emitter {
+        let u = (i as f64 + 0.5) / count as f64 * total;
+        let mut acc = 0.0;
+        for e in self.emitters {
+            acc += e.power;
+            if u < acc {
+                return e;
+            }
+        }
+        self.emitters.iter().rev().find(|e| e.power > 0.0).unwrap()
+    }
+
+    fn trace_one(&self, i: u64, count: u64, total: f64, seed: u64, steps: &mut Vec<(Step, f64)>, out: &mut Vec<Photon>) {
+        let mut rng = Rng::new(seed, Purpose::Photon, i);
+        let e = self.emitter_of(i, count, total);
+        let mut ray = Ray { origin: e.position, dir: sample_cone(&e.axis, e.cos_max, rng.uniform(), rng.uniform()) };
+        let mut power = total / count as f64;
+        for order in 1..=self.medium.max_order {
+            let Some((t, weight)) = self.forced_collision(&ray, &mut rng, steps) else { return };
+            power *= weight;
+            let pos = ray.at(t);
+            if order >= 2 {
+                out.push(Photon { pos, dir: ray.dir, power, path: i as u32, order: order as u8 });
+            }
+            if order == self.medium.max_order {
+                return;
+            }
+            power *= self.medium.albedo;
+            ray = Ray { origin: pos, dir: hg_sample(self.medium.g, &ray.dir, rng.uniform(), rng.uniform()) };
+        }
+    }
+
+    /// A collision distance along `ray` drawn from `sigma_t T / (1 - T_all)`
+    /// over the ray's part in the medium, and the weight `1 - T_all`;
+    /// `None` if the ray meets no medium.
+    fn forced_collision(&self, ray: &Ray, rng: &mut Rng, steps: &mut Vec<(Step, f64)>) -> Option<(f64, f64)> {
+        let scale = self.medium.sigma_t_scale;
+        steps.clear();
+        let mut depth = 0.0;
+        self.marcher.steps(ray, f64::INFINITY, rng.uniform(), |s| {
+            let sigma = scale * self.density.at(&ray.at(s.sample));
+            depth += sigma * s.h;
+            steps.push((s, sigma));
+            depth < 800.0
+        });
+        if depth <= 0.0 {
+            return None;
+        }
+        // 1 - T_all without cancellation for thin media.
+        let weight = -(-depth).exp_m1();
+        let target = -(-rng.uniform() * weight).ln_1p();
+        let mut before = 0.0;
+        for (s, sigma) in steps.iter() {
+            let after = before + sigma * s.h;
+            if after >= target && *sigma > 0.0 {
+                let t = s.start + ((target - before) / sigma).clamp(0.0, s.h);
+                return Some((t, weight));
+            }
+            before = after;
+        }
+        // Rounding left the target just past the end: collide in the last non-empty step.
+        let (s, _) = steps.iter().rev().find(|(_, sigma)| *sigma > 0.0)?;
+        Some((s.start + s.h, weight))
+    }
+}
