@@ -54,19 +54,40 @@ impl<R: Real> CameraRays<'_, R> {
     }
 
     /// Radiance arriving along `-ray.dir` at the ray's origin.
-    pub fn radiance(&self, ray: &Ray, jitter: f64, shadow_jitter: f64, multiple: Option<&Grid<R>>) -> R {
+    pub fn radiance(
+        &self,
+        ray: &Ray,
+        jitter: f64,
+        shadow_jitter: f64,
+        multiple: Option<&Grid<R>>,
+    ) -> R {
         let scale = self.medium.sigma_t_scale;
         let w_out = -ray.dir;
         let mut transmittance = R::cst(1.0);
         let mut radiance = R::cst(0.0);
         self.marcher.steps(ray, f64::INFINITY, jitter, |s| {
-            let x = ray.at(s.sample);
-            let sigma_t = self.density.at(&x) * scale;
+            // The step's extinction, constant over the step, read at the jittered sample.
+            let sigma_t = self.density.at(&ray.at(s.sample)) * scale;
+            let sigma = sigma_t.re();
+            // Light is gathered at a second point, drawn from q(u) = e^{-sigma u} / z on
+            // [0, h] with the same uniform (detached: the sampling density is a plain value).
+            // Dividing by q gives the weight z e^{-(sigma_t - sigma) u}, which is
+            // 1 - e^{-sigma h} (times 1/sigma_t) in the primal and exact for any
+            // stiffness; it is where the derivative of the within-step attenuation lives.
+            let z = sigma.one_minus_exp_over(s.h);
+            let xi = (s.sample - s.start) / s.h;
+            let u = if sigma > 0.0 {
+                (-(-xi * sigma * z).ln_1p() / sigma).min(s.h)
+            } else {
+                xi * s.h
+            };
+            let x = ray.at(s.start + u);
+            let within = transmittance * (-((sigma_t - sigma) * u)).exp() * z;
             if let Some(ms) = multiple {
                 let m = ms.at(&x);
                 if !m.is_exact_zero() {
-                    // Photons estimate sigma_t L directly: weight by the mean transmittance over the step.
-                    radiance += transmittance * sigma_t.one_minus_exp_over(s.h) * m;
+                    // Photons estimate sigma_t L (per unit length) directly.
+                    radiance += within * m;
                 }
             }
             if !sigma_t.is_exact_zero() && self.medium.albedo > 0.0 {
@@ -78,11 +99,16 @@ impl<R: Real> CameraRays<'_, R> {
                         continue; // A sample exactly on a point light: a set of measure zero.
                     }
                     let mu = (-to_light / dist2.sqrt()).dot(&w_out);
-                    let t = self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter);
+                    let t = self.marcher.transmittance(
+                        self.density,
+                        scale,
+                        &x,
+                        &light.position,
+                        shadow_jitter,
+                    );
                     single += t * (hg_eval(self.medium.g, mu) * light.intensity / dist2);
                 }
-                // ∫ over the step of T sigma_s L_s = T_before * albedo * (1 - e^{-sigma_t h}) * L_s.
-                radiance += transmittance * (-(-(sigma_t * s.h)).exp_m1()) * single * self.medium.albedo;
+                radiance += within * sigma_t * single * self.medium.albedo;
             }
             transmittance *= (-(sigma_t * s.h)).exp();
             transmittance.re() > T_MIN

@@ -8,6 +8,9 @@ use crate::ad::Real;
 use crate::math::{intersect_box, Ray, Vec3};
 use crate::volume::{Grid, Majorant};
 
+/// Fractional part of the golden ratio: the additive recurrence with the best spread.
+const GOLDEN: f64 = 0.618_033_988_749_894_8;
+
 /// One ray-march step: it covers `[start, start + h]` and is represented by
 /// the density at `sample`.
 #[derive(Clone, Copy, Debug)]
@@ -35,28 +38,45 @@ pub struct Marcher<'a> {
 impl<'a> Marcher<'a> {
     /// A marcher over `grid`'s box with blocks from `majorant`.
     pub fn new(grid: &Grid<f64>, majorant: &'a Majorant, step: f64) -> Self {
-        Marcher { majorant, lo: grid.lo, hi: grid.hi, step }
+        Marcher {
+            majorant,
+            lo: grid.lo,
+            hi: grid.hi,
+            step,
+        }
     }
 
     /// Calls `visit` for every step along `ray` over `[0, t_max]` inside
     /// non-empty blocks, in order; `jitter` in [0, 1) places the sample in
     /// each step. Stops early when `visit` returns false.
     pub fn steps(&self, ray: &Ray, t_max: f64, jitter: f64, mut visit: impl FnMut(Step) -> bool) {
-        let Some((t0, t1)) = intersect_box(ray, &self.lo, &self.hi) else { return };
+        let Some((t0, t1)) = intersect_box(ray, &self.lo, &self.hi) else {
+            return;
+        };
         let t1 = t1.min(t_max);
         if t1 <= t0 {
             return;
         }
         let mut intervals: Vec<(f64, f64)> = Vec::new();
-        self.majorant.occupied_intervals(ray, t0, t1, &mut intervals);
+        self.majorant
+            .occupied_intervals(ray, t0, t1, &mut intervals);
+        // Each step's offset is uniform on its own; the golden-ratio rotation
+        // decorrelates successive steps so their errors average out along the ray.
+        let mut offset = jitter;
         for (ta, tb) in intervals {
             let n = ((tb - ta) / self.step).ceil().max(1.0);
             let h = (tb - ta) / n;
             for m in 0..n as usize {
                 let start = ta + m as f64 * h;
-                if !visit(Step { start, h, sample: start + jitter * h }) {
+                if !visit(Step {
+                    start,
+                    h,
+                    sample: start + offset * h,
+                }) {
                     return;
                 }
+                offset += GOLDEN;
+                offset -= offset.floor();
             }
         }
     }
@@ -64,7 +84,14 @@ impl<'a> Marcher<'a> {
     /// Optical depth `∫ sigma_t dt` along `ray` over `[0, t_max]` with
     /// `sigma_t = scale * density`. Stops adding once the primal exceeds
     /// `cutoff` (beyond which `exp(-depth)` is zero in `f64`).
-    pub fn optical_depth<R: Real>(&self, density: &Grid<R>, scale: f64, ray: &Ray, t_max: f64, jitter: f64) -> R {
+    pub fn optical_depth<R: Real>(
+        &self,
+        density: &Grid<R>,
+        scale: f64,
+        ray: &Ray,
+        t_max: f64,
+        jitter: f64,
+    ) -> R {
         const CUTOFF: f64 = 800.0;
         let mut depth = R::cst(0.0);
         self.steps(ray, t_max, jitter, |s| {
@@ -75,13 +102,23 @@ impl<'a> Marcher<'a> {
     }
 
     /// Transmittance from `from` to `to` in a straight line.
-    pub fn transmittance<R: Real>(&self, density: &Grid<R>, scale: f64, from: &Vec3, to: &Vec3, jitter: f64) -> R {
+    pub fn transmittance<R: Real>(
+        &self,
+        density: &Grid<R>,
+        scale: f64,
+        from: &Vec3,
+        to: &Vec3,
+        jitter: f64,
+    ) -> R {
         let d = to - from;
         let dist = d.norm();
         if dist == 0.0 {
             return R::cst(1.0);
         }
-        let ray = Ray { origin: *from, dir: d / dist };
+        let ray = Ray {
+            origin: *from,
+            dir: d / dist,
+        };
         (-self.optical_depth(density, scale, &ray, dist, jitter)).exp()
     }
 }

@@ -6,10 +6,10 @@ pub mod image;
 pub mod path;
 
 pub use image::Image;
+pub mod camera_rays;
 pub mod march;
+pub mod photon;
 pub mod photons;
 pub mod splat;
-pub mod camera_rays;
-pub mod photon;
 
 pub use photon::{render_photon, PhotonRender};

@@ -51,7 +51,12 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
 
     let t = Instant::now();
     let emitters = emitters(&scene.lights, &majorant);
-    let tracer = Tracer { density, medium: &scene.medium, marcher: &marcher, emitters: &emitters };
+    let tracer = Tracer {
+        density,
+        medium: &scene.medium,
+        marcher: &marcher,
+        emitters: &emitters,
+    };
     let photons = tracer.trace(settings.photons, settings.seed);
     timings.trace = t.elapsed().as_secs_f64();
 
@@ -62,12 +67,25 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
         let geometry = SplatGeometry::new(density, settings.kernel_radius_for(density));
         let norms = geometry.normalisers(&photons);
         let positions: Vec<_> = scene.cameras.iter().map(|c| c.position).collect();
-        Some(geometry.estimate(&photons, &norms, &positions, scene.medium.albedo, scene.medium.g))
+        Some(geometry.estimate(
+            &photons,
+            &norms,
+            &positions,
+            scene.medium.albedo,
+            scene.medium.g,
+        ))
     };
     timings.gather = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    let rays = CameraRays { density, medium: &scene.medium, lights: &scene.lights, marcher: &marcher, spp: settings.spp, seed: settings.seed };
+    let rays = CameraRays {
+        density,
+        medium: &scene.medium,
+        lights: &scene.lights,
+        marcher: &marcher,
+        spp: settings.spp,
+        seed: settings.seed,
+    };
     let mut first_pixel = 0u64;
     let images = scene
         .cameras
@@ -76,10 +94,18 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
         .map(|(c, camera)| {
             let data = rays.image(camera, first_pixel, multiple.as_ref().map(|m| &m[c]));
             first_pixel += camera.pixels() as u64;
-            Image { width: camera.width, height: camera.height, data }
+            Image {
+                width: camera.width,
+                height: camera.height,
+                data,
+            }
         })
         .collect();
     timings.camera = t.elapsed().as_secs_f64();
     timings.total = start.elapsed().as_secs_f64();
-    PhotonRender { images, stored_photons: photons.len(), timings }
+    PhotonRender {
+        images,
+        stored_photons: photons.len(),
+        timings,
+    }
 }

@@ -36,7 +36,12 @@ impl SplatGeometry {
             ((extent[a] / cell).round() as usize).clamp(1, density.shape[2 - a])
         };
         let shape = [axis(2), axis(1), axis(0)];
-        let nodes = Grid::new(density.lo, density.hi, shape, vec![0.0; shape.iter().product()]);
+        let nodes = Grid::new(
+            density.lo,
+            density.hi,
+            shape,
+            vec![0.0; shape.iter().product()],
+        );
         SplatGeometry { nodes, radius }
     }
 
@@ -44,14 +49,25 @@ impl SplatGeometry {
     fn range(&self, x: &Vec3, a: usize) -> (usize, usize) {
         let n = self.nodes.shape[2 - a];
         let cell = (self.nodes.hi[a] - self.nodes.lo[a]) / n as f64;
-        let lo = ((x[a] - self.radius - self.nodes.lo[a]) / cell - 0.5).ceil().max(0.0) as usize;
-        let hi = (((x[a] + self.radius - self.nodes.lo[a]) / cell - 0.5).floor().max(-1.0) + 1.0) as usize;
+        let lo = ((x[a] - self.radius - self.nodes.lo[a]) / cell - 0.5)
+            .ceil()
+            .max(0.0) as usize;
+        let hi = (((x[a] + self.radius - self.nodes.lo[a]) / cell - 0.5)
+            .floor()
+            .max(-1.0)
+            + 1.0) as usize;
         (lo.min(n), hi.min(n))
     }
 
     /// Calls `deposit(flat_index, weight)` for the nodes a photon at `x` reaches,
     /// restricted to z-planes `k_range`; weights over all planes sum to 1.
-    fn for_each_weight(&self, x: &Vec3, norm: f64, k_range: (usize, usize), mut deposit: impl FnMut(usize, f64)) {
+    fn for_each_weight(
+        &self,
+        x: &Vec3,
+        norm: f64,
+        k_range: (usize, usize),
+        mut deposit: impl FnMut(usize, f64),
+    ) {
         if norm == 0.0 {
             // No node within the radius: the trilinear hat keeps the photon's power.
             if let Some(s) = self.nodes.stencil(x) {
@@ -102,13 +118,23 @@ impl SplatGeometry {
 
     /// Per-photon normalisers (parallel, in photon order).
     pub fn normalisers(&self, photons: &[Photon]) -> Vec<f64> {
-        photons.par_iter().map(|p| self.kernel_sum(&p.pos)).collect()
+        photons
+            .par_iter()
+            .map(|p| self.kernel_sum(&p.pos))
+            .collect()
     }
 
     /// For each camera position, the in-scattered radiance per unit length
     /// `albedo * sum_p p_HG * power * K` towards that camera, on the nodes.
     /// Deterministic: every node sums its photons in photon order.
-    pub fn estimate(&self, photons: &[Photon], norms: &[f64], cameras: &[Vec3], albedo: f64, g: f64) -> Vec<Grid<f64>> {
+    pub fn estimate(
+        &self,
+        photons: &[Photon],
+        norms: &[f64],
+        cameras: &[Vec3],
+        albedo: f64,
+        g: f64,
+    ) -> Vec<Grid<f64>> {
         let [nz, ny, nx] = self.nodes.shape;
         let cell_volume = (self.nodes.hi - self.nodes.lo).product() / (nx * ny * nz) as f64;
         let chunk = 4usize;
@@ -122,7 +148,11 @@ impl SplatGeometry {
                 let mut slab = vec![0.0; (k_range.1 - k_range.0) * plane];
                 for (p, &norm) in photons.iter().zip(norms) {
                     let (k0, k1) = self.range(&p.pos, 2);
-                    let reach = if norm == 0.0 { (k0.saturating_sub(1), k1 + 1) } else { (k0, k1) };
+                    let reach = if norm == 0.0 {
+                        (k0.saturating_sub(1), k1 + 1)
+                    } else {
+                        (k0, k1)
+                    };
                     if reach.1 <= k_range.0 || reach.0 >= k_range.1 {
                         continue;
                     }
@@ -131,8 +161,11 @@ impl SplatGeometry {
                     if dist == 0.0 {
                         continue;
                     }
-                    let value = albedo * hg_eval(g, p.dir.dot(&(to_cam / dist))) * p.power / cell_volume;
-                    self.for_each_weight(&p.pos, norm, k_range, |idx, w| slab[idx - k_range.0 * plane] += w * value);
+                    let value =
+                        albedo * hg_eval(g, p.dir.dot(&(to_cam / dist))) * p.power / cell_volume;
+                    self.for_each_weight(&p.pos, norm, k_range, |idx, w| {
+                        slab[idx - k_range.0 * plane] += w * value
+                    });
                 }
                 slab
             })

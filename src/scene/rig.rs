@@ -28,7 +28,12 @@ pub fn on_circle(r: f64, deg: f64) -> Vec3 {
 
 /// The paper's medium: g = 0.9, albedo 0.9, sigma_t_scale 20, up to 3rd order.
 pub fn paper_medium() -> Medium {
-    Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.9, max_order: 3 }
+    Medium {
+        sigma_t_scale: 20.0,
+        albedo: 0.9,
+        g: 0.9,
+        max_order: 3,
+    }
 }
 
 /// The paper's five cameras with `res x res` images.
@@ -48,10 +53,22 @@ pub fn paper_cameras(res: usize) -> Vec<Camera> {
 
 /// The paper's three lights.
 pub fn paper_lights() -> Vec<Light> {
-    LIGHT_AZIMUTHS_DEG.iter().map(|&a| Light { position: on_circle(LIGHT_RADIUS, a), intensity: LIGHT_INTENSITY }).collect()
+    LIGHT_AZIMUTHS_DEG
+        .iter()
+        .map(|&a| Light {
+            position: on_circle(LIGHT_RADIUS, a),
+            intensity: LIGHT_INTENSITY,
+        })
+        .collect()
 }
 
 /// The paper's scene around `density` (box [-0.5, 0.5]^3 expected), images `res x res`.
 pub fn paper_scene(density: Grid<f64>, res: usize) -> Scene {
-    Scene { density, medium: paper_medium(), lights: paper_lights(), cameras: paper_cameras(res), render: RenderSettings::default() }
+    Scene {
+        density,
+        medium: paper_medium(),
+        lights: paper_lights(),
+        cameras: paper_cameras(res),
+        render: RenderSettings::default(),
+    }
 }

@@ -36,13 +36,27 @@ pub struct Stencil {
 impl<T: Copy> Grid<T> {
     /// A grid holding `data` (C order, `shape = [nz, ny, nx]`).
     pub fn new(lo: Vec3, hi: Vec3, shape: [usize; 3], data: Vec<T>) -> Self {
-        assert_eq!(data.len(), shape.iter().product::<usize>(), "grid data does not match its shape");
-        Grid { lo, hi, shape, data }
+        assert_eq!(
+            data.len(),
+            shape.iter().product::<usize>(),
+            "grid data does not match its shape"
+        );
+        Grid {
+            lo,
+            hi,
+            shape,
+            data,
+        }
     }
 
     /// A grid of the same geometry holding `f` of every value.
     pub fn map<U: Copy>(&self, f: impl Fn(T) -> U) -> Grid<U> {
-        Grid { lo: self.lo, hi: self.hi, shape: self.shape, data: self.data.iter().map(|&v| f(v)).collect() }
+        Grid {
+            lo: self.lo,
+            hi: self.hi,
+            shape: self.shape,
+            data: self.data.iter().map(|&v| f(v)).collect(),
+        }
     }
 
     /// Number of voxels.
@@ -64,13 +78,22 @@ impl<T: Copy> Grid<T> {
     /// Voxel size along x, y, z (world units).
     pub fn voxel_size(&self) -> Vec3 {
         let e = self.hi - self.lo;
-        Vec3::new(e.x / self.shape[2] as f64, e.y / self.shape[1] as f64, e.z / self.shape[0] as f64)
+        Vec3::new(
+            e.x / self.shape[2] as f64,
+            e.y / self.shape[1] as f64,
+            e.z / self.shape[0] as f64,
+        )
     }
 
     /// World position of the centre of voxel `(k, j, i)`.
     pub fn voxel_center(&self, k: usize, j: usize, i: usize) -> Vec3 {
         let v = self.voxel_size();
-        self.lo + Vec3::new((i as f64 + 0.5) * v.x, (j as f64 + 0.5) * v.y, (k as f64 + 0.5) * v.z)
+        self.lo
+            + Vec3::new(
+                (i as f64 + 0.5) * v.x,
+                (j as f64 + 0.5) * v.y,
+                (k as f64 + 0.5) * v.z,
+            )
     }
 
     /// True if `p` lies in the closed box.
@@ -99,7 +122,10 @@ impl<T: Copy> Grid<T> {
             hi_i[a] = (i0 + 1).min(n - 1);
             frac[a] = u - i0 as f64;
         }
-        let mut s = Stencil { index: [0; 8], weight: [0.0; 8] };
+        let mut s = Stencil {
+            index: [0; 8],
+            weight: [0.0; 8],
+        };
         for c in 0..8 {
             let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
             let i = if bx == 1 { hi_i[0] } else { lo_i[0] };
@@ -179,7 +205,12 @@ mod tests {
         // Outer half-voxel shell in x: clamped to the edge value.
         assert!((g.at(&Vec3::new(0.01, a.y, a.z)) - 10.0).abs() < 1e-12);
         assert_eq!(g.at(&Vec3::new(-0.01, a.y, a.z)), 0.0);
-        let w: f64 = g.stencil(&Vec3::new(0.3, 0.7, 0.2)).unwrap().weight.iter().sum();
+        let w: f64 = g
+            .stencil(&Vec3::new(0.3, 0.7, 0.2))
+            .unwrap()
+            .weight
+            .iter()
+            .sum();
         assert!((w - 1.0).abs() < 1e-12);
     }
 

@@ -1,0 +1,210 @@
+//! Analytic checks of the transport pieces: phase function, transmittance,
+//! single scattering against an independent quadrature.
+
+mod common;
+
+use dualphoton::math::{intersect_box, Ray, Vec3};
+use dualphoton::render::march::Marcher;
+use dualphoton::render::render_photon;
+use dualphoton::rng::Rng;
+use dualphoton::scene::Light;
+use dualphoton::volume::phase::{hg_eval, hg_sample, hg_sample_mu};
+use dualphoton::volume::Majorant;
+use std::f64::consts::PI;
+
+/// ∫ p_HG dω by the midpoint rule in y = ln(1 + g^2 - 2 g mu), where the
+/// integrand is smooth even for g near ±1 (the peak in mu is 1e-6 wide there).
+fn hg_normalisation(g: f64) -> f64 {
+    if g == 0.0 {
+        return hg_eval(0.0, 0.3) * 4.0 * PI;
+    }
+    let (y0, y1) = ((1.0 - g.abs()).powi(2).ln(), (1.0 + g.abs()).powi(2).ln());
+    let n = 200_000;
+    let h = (y1 - y0) / n as f64;
+    (0..n)
+        .map(|i| {
+            let x = (y0 + (i as f64 + 0.5) * h).exp();
+            let mu = (1.0 + g * g - x) / (2.0 * g);
+            // dmu = dx / (2|g|), dx = x dy
+            hg_eval(g, mu) * x / (2.0 * g.abs())
+        })
+        .sum::<f64>()
+        * h
+        * 2.0
+        * PI
+}
+
+/// The HG cumulative distribution of mu, in closed form.
+fn hg_cdf(g: f64, mu: f64) -> f64 {
+    if g.abs() < 1e-12 {
+        return (mu + 1.0) * 0.5;
+    }
+    (1.0 - g * g) / (2.0 * g) * ((1.0 + g * g - 2.0 * g * mu).powf(-0.5) - 1.0 / (1.0 + g))
+}
+
+#[test]
+fn hg_integrates_to_one() {
+    for g in [-0.999, -0.9, -0.3, 0.0, 0.5, 0.9, 0.99, 0.999] {
+        let integral = hg_normalisation(g);
+        assert!(
+            (integral - 1.0).abs() < 1e-6,
+            "g = {g}: integral {integral}"
+        );
+    }
+}
+
+#[test]
+fn hg_eval_is_the_derivative_of_the_cdf() {
+    for g in [-0.9, 0.0, 0.5, 0.9] {
+        for mu in [-0.9, -0.2, 0.4, 0.95] {
+            let h = 1e-6;
+            let pdf = (hg_cdf(g, mu + h) - hg_cdf(g, mu - h)) / (2.0 * h) / (2.0 * PI);
+            assert!(
+                (pdf - hg_eval(g, mu)).abs() < 1e-6 * pdf.max(1.0),
+                "g = {g}, mu = {mu}"
+            );
+        }
+    }
+}
+
+#[test]
+fn hg_sampling_matches_eval_and_mean_cosine_is_g() {
+    for g in [-0.9, -0.5, 0.0, 0.3, 0.9, 0.999] {
+        let mut rng = Rng::from_seed(11);
+        let n = 400_000;
+        let bins = 20;
+        let mut hist = vec![0usize; bins];
+        let mut mean = 0.0;
+        for _ in 0..n {
+            let mu = hg_sample_mu(g, rng.uniform());
+            assert!(mu.is_finite() && (-1.0..=1.0).contains(&mu));
+            mean += mu / n as f64;
+            hist[(((mu + 1.0) * 0.5 * bins as f64) as usize).min(bins - 1)] += 1;
+        }
+        // Mean cosine: the standard error of mu is at most 1/sqrt(n).
+        assert!(
+            (mean - g).abs() < 5.0 / (n as f64).sqrt(),
+            "g = {g}: mean cosine {mean}"
+        );
+        // Histogram against the distribution of p_HG (sampled pdf == eval).
+        for (b, &count) in hist.iter().enumerate() {
+            let (a, c) = (
+                -1.0 + 2.0 * b as f64 / bins as f64,
+                -1.0 + 2.0 * (b + 1) as f64 / bins as f64,
+            );
+            let expected = (hg_cdf(g, c) - hg_cdf(g, a)) * n as f64;
+            let sd = expected.max(1.0).sqrt();
+            assert!(
+                (count as f64 - expected).abs() < 5.0 * sd + 2.0,
+                "g = {g}, bin {b}: {count} vs {expected:.1}"
+            );
+        }
+    }
+}
+
+#[test]
+fn hg_is_finite_near_plus_minus_one() {
+    for g in [-0.9999, -0.999, 0.999, 0.9999] {
+        for mu in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+            let p = hg_eval(g, mu);
+            assert!(p.is_finite() && p >= 0.0, "g = {g}, mu = {mu}: {p}");
+        }
+        let w = Vec3::new(0.3, -0.4, 0.5).normalize();
+        for u in [0.0, 1e-12, 0.5, 1.0 - 1e-12] {
+            let d = hg_sample(g, &w, u, 0.3);
+            assert!(d.iter().all(|c| c.is_finite()) && (d.norm() - 1.0).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn transmittance_through_homogeneous_slab_is_exponential() {
+    let rho = 0.37;
+    let grid = common::homogeneous(16, rho);
+    let majorant = Majorant::build(&grid, 4);
+    let marcher = Marcher::new(&grid, &majorant, 0.5 / 16.0);
+    for (from, to) in [
+        (Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.0, 0.0, -2.0)),
+        (Vec3::new(-1.0, 0.1, 0.2), Vec3::new(0.2, -0.1, 0.0)),
+        (Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.3, 0.2, -0.4)),
+    ] {
+        let ray = Ray {
+            origin: from,
+            dir: (to - from).normalize(),
+        };
+        let (t0, t1) = intersect_box(&ray, &grid.lo, &grid.hi).unwrap();
+        let d = t1.min((to - from).norm()) - t0;
+        let t: f64 = marcher.transmittance(&grid, 20.0, &from, &to, 0.37);
+        let exact = (-20.0 * rho * d).exp();
+        assert!(
+            (t - exact).abs() < 1e-12 * exact.max(1e-300) + 1e-15,
+            "{t} vs {exact}"
+        );
+    }
+}
+
+/// ∫ over the camera axis of T_cam sigma_s p_HG I T_light / r^2 by Simpson's rule, all analytic.
+fn single_scattering_quadrature(rho: f64, albedo: f64, g: f64, cam: Vec3, light: &Light) -> f64 {
+    let sigma_t = 20.0 * rho;
+    let lo = Vec3::from_element(-0.5);
+    let hi = Vec3::from_element(0.5);
+    let ray = Ray {
+        origin: cam,
+        dir: (-cam).normalize(),
+    };
+    let (t0, t1) = intersect_box(&ray, &lo, &hi).unwrap();
+    let f = |t: f64| {
+        let x = ray.at(t);
+        let to_light = light.position - x;
+        let r = to_light.norm();
+        let shadow = Ray {
+            origin: x,
+            dir: to_light / r,
+        };
+        let inside = intersect_box(&shadow, &lo, &hi).map_or(0.0, |(a, b)| b.min(r) - a);
+        let mu = (-to_light / r).dot(&(-ray.dir));
+        (-sigma_t * (t - t0)).exp()
+            * albedo
+            * sigma_t
+            * hg_eval(g, mu)
+            * light.intensity
+            * (-sigma_t * inside).exp()
+            / (r * r)
+    };
+    let n = 20_000;
+    let h = (t1 - t0) / n as f64;
+    let mut s = f(t0) + f(t1);
+    for i in 1..n {
+        s += f(t0 + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    s * h / 3.0
+}
+
+#[test]
+fn single_scattering_matches_quadrature_within_one_percent() {
+    for (rho, g, light_pos) in [
+        (0.05, 0.9, Vec3::new(1.5, 0.3, 2.0)),
+        (0.2, -0.3, Vec3::new(-2.0, 1.0, -1.0)),
+        (0.02, 0.0, Vec3::new(0.0, 3.0, 0.0)),
+    ] {
+        let light = Light {
+            position: light_pos,
+            intensity: 100.0,
+        };
+        // A narrow field of view: the pixel's footprint is the central ray.
+        let cam = common::camera(2.5, 0.01, 1);
+        let mut scene = common::scene(
+            common::homogeneous(8, rho),
+            common::medium(0.9, g, 1),
+            vec![light.clone()],
+            vec![cam.clone()],
+        );
+        scene.render.spp = 64;
+        let ours = render_photon(&scene).images[0].data[0];
+        let reference = single_scattering_quadrature(rho, 0.9, g, cam.position, &light);
+        assert!(
+            (ours - reference).abs() < 0.01 * reference,
+            "rho {rho}, g {g}: {ours} vs quadrature {reference}"
+        );
+    }
+}
