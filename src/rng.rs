@@ -70,18 +70,9 @@ mod tests {
 
     #[test]
     fn streams_are_reproducible_and_distinct() {
-        let a: Vec<f64> = (0..4)
-            .map(|_| 0.0)
-            .scan(Rng::new(7, Purpose::Photon, 3), |r, _| Some(r.uniform()))
-            .collect();
-        let b: Vec<f64> = (0..4)
-            .map(|_| 0.0)
-            .scan(Rng::new(7, Purpose::Photon, 3), |r, _| Some(r.uniform()))
-            .collect();
-        let c: Vec<f64> = (0..4)
-            .map(|_| 0.0)
-            .scan(Rng::new(7, Purpose::Photon, 4), |r, _| Some(r.uniform()))
-            .collect();
+        let a: Vec<f64> = (0..4).map(|_| 0.0).scan(Rng::new(7, Purpose::Photon, 3), |r, _| Some(r.uniform())).collect();
+        let b: Vec<f64> = (0..4).map(|_| 0.0).scan(Rng::new(7, Purpose::Photon, 3), |r, _| Some(r.uniform())).collect();
+        let c: Vec<f64> = (0..4).map(|_| 0.0).scan(Rng::new(7, Purpose::Photon, 4), |r, _| Some(r.uniform())).collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
     }

@@ -46,10 +46,7 @@ fn hg_cdf(g: f64, mu: f64) -> f64 {
 fn hg_integrates_to_one() {
     for g in [-0.999, -0.9, -0.3, 0.0, 0.5, 0.9, 0.99, 0.999] {
         let integral = hg_normalisation(g);
-        assert!(
-            (integral - 1.0).abs() < 1e-6,
-            "g = {g}: integral {integral}"
-        );
+        assert!((integral - 1.0).abs() < 1e-6, "g = {g}: integral {integral}");
     }
 }
 
@@ -59,10 +56,7 @@ fn hg_eval_is_the_derivative_of_the_cdf() {
         for mu in [-0.9, -0.2, 0.4, 0.95] {
             let h = 1e-6;
             let pdf = (hg_cdf(g, mu + h) - hg_cdf(g, mu - h)) / (2.0 * h) / (2.0 * PI);
-            assert!(
-                (pdf - hg_eval(g, mu)).abs() < 1e-6 * pdf.max(1.0),
-                "g = {g}, mu = {mu}"
-            );
+            assert!((pdf - hg_eval(g, mu)).abs() < 1e-6 * pdf.max(1.0), "g = {g}, mu = {mu}");
         }
     }
 }
@@ -82,22 +76,13 @@ fn hg_sampling_matches_eval_and_mean_cosine_is_g() {
             hist[(((mu + 1.0) * 0.5 * bins as f64) as usize).min(bins - 1)] += 1;
         }
         // Mean cosine: the standard error of mu is at most 1/sqrt(n).
-        assert!(
-            (mean - g).abs() < 5.0 / (n as f64).sqrt(),
-            "g = {g}: mean cosine {mean}"
-        );
+        assert!((mean - g).abs() < 5.0 / (n as f64).sqrt(), "g = {g}: mean cosine {mean}");
         // Histogram against the distribution of p_HG (sampled pdf == eval).
         for (b, &count) in hist.iter().enumerate() {
-            let (a, c) = (
-                -1.0 + 2.0 * b as f64 / bins as f64,
-                -1.0 + 2.0 * (b + 1) as f64 / bins as f64,
-            );
+            let (a, c) = (-1.0 + 2.0 * b as f64 / bins as f64, -1.0 + 2.0 * (b + 1) as f64 / bins as f64);
             let expected = (hg_cdf(g, c) - hg_cdf(g, a)) * n as f64;
             let sd = expected.max(1.0).sqrt();
-            assert!(
-                (count as f64 - expected).abs() < 5.0 * sd + 2.0,
-                "g = {g}, bin {b}: {count} vs {expected:.1}"
-            );
+            assert!((count as f64 - expected).abs() < 5.0 * sd + 2.0, "g = {g}, bin {b}: {count} vs {expected:.1}");
         }
     }
 }
@@ -128,18 +113,12 @@ fn transmittance_through_homogeneous_slab_is_exponential() {
         (Vec3::new(-1.0, 0.1, 0.2), Vec3::new(0.2, -0.1, 0.0)),
         (Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.3, 0.2, -0.4)),
     ] {
-        let ray = Ray {
-            origin: from,
-            dir: (to - from).normalize(),
-        };
+        let ray = Ray { origin: from, dir: (to - from).normalize() };
         let (t0, t1) = intersect_box(&ray, &grid.lo, &grid.hi).unwrap();
         let d = t1.min((to - from).norm()) - t0;
         let t: f64 = marcher.transmittance(&grid, 20.0, &from, &to, 0.37);
         let exact = (-20.0 * rho * d).exp();
-        assert!(
-            (t - exact).abs() < 1e-12 * exact.max(1e-300) + 1e-15,
-            "{t} vs {exact}"
-        );
+        assert!((t - exact).abs() < 1e-12 * exact.max(1e-300) + 1e-15, "{t} vs {exact}");
     }
 }
 
@@ -148,27 +127,16 @@ fn single_scattering_quadrature(rho: f64, albedo: f64, g: f64, cam: Vec3, light:
     let sigma_t = 20.0 * rho;
     let lo = Vec3::from_element(-0.5);
     let hi = Vec3::from_element(0.5);
-    let ray = Ray {
-        origin: cam,
-        dir: (-cam).normalize(),
-    };
+    let ray = Ray { origin: cam, dir: (-cam).normalize() };
     let (t0, t1) = intersect_box(&ray, &lo, &hi).unwrap();
     let f = |t: f64| {
         let x = ray.at(t);
         let to_light = light.position - x;
         let r = to_light.norm();
-        let shadow = Ray {
-            origin: x,
-            dir: to_light / r,
-        };
+        let shadow = Ray { origin: x, dir: to_light / r };
         let inside = intersect_box(&shadow, &lo, &hi).map_or(0.0, |(a, b)| b.min(r) - a);
         let mu = (-to_light / r).dot(&(-ray.dir));
-        (-sigma_t * (t - t0)).exp()
-            * albedo
-            * sigma_t
-            * hg_eval(g, mu)
-            * light.intensity
-            * (-sigma_t * inside).exp()
+        (-sigma_t * (t - t0)).exp() * albedo * sigma_t * hg_eval(g, mu) * light.intensity * (-sigma_t * inside).exp()
             / (r * r)
     };
     let n = 20_000;
@@ -187,10 +155,7 @@ fn single_scattering_matches_quadrature_within_one_percent() {
         (0.2, -0.3, Vec3::new(-2.0, 1.0, -1.0)),
         (0.02, 0.0, Vec3::new(0.0, 3.0, 0.0)),
     ] {
-        let light = Light {
-            position: light_pos,
-            intensity: 100.0,
-        };
+        let light = Light { position: light_pos, intensity: 100.0 };
         // A narrow field of view: the pixel's footprint is the central ray.
         let cam = common::camera(2.5, 0.01, 1);
         let mut scene = common::scene(
@@ -202,9 +167,6 @@ fn single_scattering_matches_quadrature_within_one_percent() {
         scene.render.spp = 64;
         let ours = render_photon(&scene).images[0].data[0];
         let reference = single_scattering_quadrature(rho, 0.9, g, cam.position, &light);
-        assert!(
-            (ours - reference).abs() < 0.01 * reference,
-            "rho {rho}, g {g}: {ours} vs quadrature {reference}"
-        );
+        assert!((ours - reference).abs() < 0.01 * reference, "rho {rho}, g {g}: {ours} vs quadrature {reference}");
     }
 }

@@ -19,8 +19,7 @@ pub struct Array {
 
 /// Reads a `.npy` file. `what` names the field the file belongs to, for errors.
 pub fn read(path: &Path, what: &str) -> Result<Array> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| Error(format!("{what}: cannot read {}: {e}", path.display())))?;
+    let bytes = std::fs::read(path).map_err(|e| Error(format!("{what}: cannot read {}: {e}", path.display())))?;
     parse(&bytes).map_err(|e| Error(format!("{what}: {}: {}", path.display(), e.0)))
 }
 
@@ -31,36 +30,27 @@ pub fn parse(bytes: &[u8]) -> Result<Array> {
     }
     let (header_len, start) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 if bytes.len() >= 12 => (
-            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-            12,
-        ),
+        2 | 3 if bytes.len() >= 12 => (u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize, 12),
         v => bail!("unsupported .npy version {v}"),
     };
     let end = start + header_len;
     if bytes.len() < end {
         bail!("truncated .npy header");
     }
-    let header =
-        std::str::from_utf8(&bytes[start..end]).map_err(|_| Error::new("header is not text"))?;
+    let header = std::str::from_utf8(&bytes[start..end]).map_err(|_| Error::new("header is not text"))?;
     let dtype = header_value(header, "descr").ok_or_else(|| Error::new("header has no 'descr'"))?;
     let dtype = dtype.trim_matches(|c| c == '\'' || c == '"').to_string();
-    let fortran = header_value(header, "fortran_order")
-        .ok_or_else(|| Error::new("header has no 'fortran_order'"))?;
+    let fortran = header_value(header, "fortran_order").ok_or_else(|| Error::new("header has no 'fortran_order'"))?;
     if fortran.trim() != "False" {
         bail!("Fortran-order arrays are not supported (save with C order)");
     }
-    let shape_text =
-        header_value(header, "shape").ok_or_else(|| Error::new("header has no 'shape'"))?;
+    let shape_text = header_value(header, "shape").ok_or_else(|| Error::new("header has no 'shape'"))?;
     let shape = shape_text
         .trim_matches(|c| c == '(' || c == ')')
         .split(',')
         .map(str::trim)
         .filter(|s| !s.is_empty())
-        .map(|s| {
-            s.parse::<usize>()
-                .map_err(|_| Error(format!("bad shape {shape_text}")))
-        })
+        .map(|s| s.parse::<usize>().map_err(|_| Error(format!("bad shape {shape_text}"))))
         .collect::<Result<Vec<_>>>()?;
     let count: usize = shape.iter().product();
     let body = &bytes[end..];
@@ -71,23 +61,11 @@ pub fn parse(bytes: &[u8]) -> Result<Array> {
         other => bail!("dtype {other} is not supported (need float32 or float64, little-endian)"),
     };
     if body.len() < count * size {
-        bail!(
-            "data is truncated: shape {shape:?} needs {} bytes, file has {}",
-            count * size,
-            body.len()
-        );
+        bail!("data is truncated: shape {shape:?} needs {} bytes, file has {}", count * size, body.len());
     }
     let data = match size {
-        4 => body
-            .chunks_exact(4)
-            .take(count)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64)
-            .collect(),
-        8 => body
-            .chunks_exact(8)
-            .take(count)
-            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-            .collect(),
+        4 => body.chunks_exact(4).take(count).map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64).collect(),
+        8 => body.chunks_exact(8).take(count).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect(),
         _ => body[..count].iter().map(|&b| b as f64).collect(),
     };
     Ok(Array { shape, data, dtype })
@@ -112,17 +90,9 @@ fn header_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
 fn write_raw(path: &Path, descr: &str, shape: &[usize], body: &[u8]) -> Result<()> {
     let shape_text = match shape.len() {
         1 => format!("({},)", shape[0]),
-        _ => format!(
-            "({})",
-            shape
-                .iter()
-                .map(|s| s.to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
+        _ => format!("({})", shape.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", ")),
     };
-    let mut header =
-        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_text}, }}");
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_text}, }}");
     // Pad so that the data starts on a 64-byte boundary, ending with a newline.
     let total = 10 + header.len() + 1;
     header.push_str(&" ".repeat((64 - total % 64) % 64));
@@ -138,10 +108,7 @@ fn write_raw(path: &Path, descr: &str, shape: &[usize], body: &[u8]) -> Result<(
 /// Writes `data` (C order) as a float32 `.npy` of the given shape.
 pub fn write_f32(path: &Path, shape: &[usize], data: &[f64]) -> Result<()> {
     assert_eq!(shape.iter().product::<usize>(), data.len());
-    let body: Vec<u8> = data
-        .iter()
-        .flat_map(|&v| (v as f32).to_le_bytes())
-        .collect();
+    let body: Vec<u8> = data.iter().flat_map(|&v| (v as f32).to_le_bytes()).collect();
     write_raw(path, "<f4", shape, &body)
 }
 
@@ -166,10 +133,7 @@ mod tests {
         assert_eq!(a.data, vec![0.0, 1.0, 2.0, 3.0, 4.5, -1.0]);
         assert_eq!(a.dtype, "<f4");
         let bytes = std::fs::read(&p).unwrap();
-        assert_eq!(
-            (10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize) % 64,
-            0
-        );
+        assert_eq!((10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize) % 64, 0);
     }
 
     #[test]

@@ -10,11 +10,7 @@ use std::path::Path;
 
 /// The 99.5th percentile of the positive values, or 1 if there are none.
 pub fn auto_white(values: &[f64]) -> f64 {
-    let mut pos: Vec<f64> = values
-        .iter()
-        .copied()
-        .filter(|v| *v > 0.0 && v.is_finite())
-        .collect();
+    let mut pos: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0 && v.is_finite()).collect();
     if pos.is_empty() {
         return 1.0;
     }
@@ -24,20 +20,11 @@ pub fn auto_white(values: &[f64]) -> f64 {
 
 /// 8-bit grey levels of `values` under the tone map with the given white point.
 pub fn tone_map(values: &[f64], white: f64) -> Vec<u8> {
-    values
-        .iter()
-        .map(|&v| ((v / white).clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)
-        .collect()
+    values.iter().map(|&v| ((v / white).clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8).collect()
 }
 
 /// Writes a `width x height` radiance image (row 0 at the top) as a PNG preview.
-pub fn write_preview(
-    path: &Path,
-    width: usize,
-    height: usize,
-    values: &[f64],
-    white: Option<f64>,
-) -> Result<()> {
+pub fn write_preview(path: &Path, width: usize, height: usize, values: &[f64], white: Option<f64>) -> Result<()> {
     let white = white.unwrap_or_else(|| auto_white(values));
     let grey = tone_map(values, white);
     image::GrayImage::from_raw(width as u32, height as u32, grey)

@@ -82,11 +82,7 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [
-            Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(0.0, 0.0, -1.0),
-            Vec3::new(1.0, 2.0, -3.0).normalize(),
-        ] {
+        for n in [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 2.0, -3.0).normalize()] {
             let (s, t) = frame(&n);
             assert!((s.norm() - 1.0).abs() < 1e-12 && (t.norm() - 1.0).abs() < 1e-12);
             assert!(s.dot(&t).abs() < 1e-12 && s.dot(&n).abs() < 1e-12 && t.dot(&n).abs() < 1e-12);
@@ -95,19 +91,10 @@ mod tests {
 
     #[test]
     fn box_intersection() {
-        let ray = Ray {
-            origin: Vec3::new(0.0, 0.0, 5.0),
-            dir: Vec3::new(0.0, 0.0, -1.0),
-        };
-        let (t0, t1) =
-            intersect_box(&ray, &Vec3::from_element(-0.5), &Vec3::from_element(0.5)).unwrap();
+        let ray = Ray { origin: Vec3::new(0.0, 0.0, 5.0), dir: Vec3::new(0.0, 0.0, -1.0) };
+        let (t0, t1) = intersect_box(&ray, &Vec3::from_element(-0.5), &Vec3::from_element(0.5)).unwrap();
         assert!((t0 - 4.5).abs() < 1e-12 && (t1 - 5.5).abs() < 1e-12);
-        let miss = Ray {
-            origin: Vec3::new(2.0, 0.0, 5.0),
-            dir: Vec3::new(0.0, 0.0, -1.0),
-        };
-        assert!(
-            intersect_box(&miss, &Vec3::from_element(-0.5), &Vec3::from_element(0.5)).is_none()
-        );
+        let miss = Ray { origin: Vec3::new(2.0, 0.0, 5.0), dir: Vec3::new(0.0, 0.0, -1.0) };
+        assert!(intersect_box(&miss, &Vec3::from_element(-0.5), &Vec3::from_element(0.5)).is_none());
     }
 }

@@ -54,13 +54,7 @@ impl<R: Real> CameraRays<'_, R> {
     }
 
     /// Radiance arriving along `-ray.dir` at the ray's origin.
-    pub fn radiance(
-        &self,
-        ray: &Ray,
-        jitter: f64,
-        shadow_jitter: f64,
-        multiple: Option<&Grid<R>>,
-    ) -> R {
+    pub fn radiance(&self, ray: &Ray, jitter: f64, shadow_jitter: f64, multiple: Option<&Grid<R>>) -> R {
         let scale = self.medium.sigma_t_scale;
         let w_out = -ray.dir;
         let mut transmittance = R::cst(1.0);
@@ -76,11 +70,7 @@ impl<R: Real> CameraRays<'_, R> {
             // stiffness; it is where the derivative of the within-step attenuation lives.
             let z = sigma.one_minus_exp_over(s.h);
             let xi = (s.sample - s.start) / s.h;
-            let u = if sigma > 0.0 {
-                (-(-xi * sigma * z).ln_1p() / sigma).min(s.h)
-            } else {
-                xi * s.h
-            };
+            let u = if sigma > 0.0 { (-(-xi * sigma * z).ln_1p() / sigma).min(s.h) } else { xi * s.h };
             let x = ray.at(s.start + u);
             let within = transmittance * (-((sigma_t - sigma) * u)).exp() * z;
             if let Some(ms) = multiple {
@@ -99,13 +89,7 @@ impl<R: Real> CameraRays<'_, R> {
                         continue; // A sample exactly on a point light: a set of measure zero.
                     }
                     let mu = (-to_light / dist2.sqrt()).dot(&w_out);
-                    let t = self.marcher.transmittance(
-                        self.density,
-                        scale,
-                        &x,
-                        &light.position,
-                        shadow_jitter,
-                    );
+                    let t = self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter);
                     single += t * (hg_eval(self.medium.g, mu) * light.intensity / dist2);
                 }
                 radiance += within * sigma_t * single * self.medium.albedo;

@@ -14,11 +14,7 @@ pub struct Image {
 impl Image {
     /// A black image.
     pub fn zeros(width: usize, height: usize) -> Self {
-        Image {
-            width,
-            height,
-            data: vec![0.0; width * height],
-        }
+        Image { width, height, data: vec![0.0; width * height] }
     }
 
     /// Means over `b x b`-pixel blocks (partial blocks at the edges dropped).

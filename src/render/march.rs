@@ -38,12 +38,7 @@ pub struct Marcher<'a> {
 impl<'a> Marcher<'a> {
     /// A marcher over `grid`'s box with blocks from `majorant`.
     pub fn new(grid: &Grid<f64>, majorant: &'a Majorant, step: f64) -> Self {
-        Marcher {
-            majorant,
-            lo: grid.lo,
-            hi: grid.hi,
-            step,
-        }
+        Marcher { majorant, lo: grid.lo, hi: grid.hi, step }
     }
 
     /// Calls `visit` for every step along `ray` over `[0, t_max]` inside
@@ -58,8 +53,7 @@ impl<'a> Marcher<'a> {
             return;
         }
         let mut intervals: Vec<(f64, f64)> = Vec::new();
-        self.majorant
-            .occupied_intervals(ray, t0, t1, &mut intervals);
+        self.majorant.occupied_intervals(ray, t0, t1, &mut intervals);
         // Each step's offset is uniform on its own; the golden-ratio rotation
         // decorrelates successive steps so their errors average out along the ray.
         let mut offset = jitter;
@@ -68,11 +62,7 @@ impl<'a> Marcher<'a> {
             let h = (tb - ta) / n;
             for m in 0..n as usize {
                 let start = ta + m as f64 * h;
-                if !visit(Step {
-                    start,
-                    h,
-                    sample: start + offset * h,
-                }) {
+                if !visit(Step { start, h, sample: start + offset * h }) {
                     return;
                 }
                 offset += GOLDEN;
@@ -84,14 +74,7 @@ impl<'a> Marcher<'a> {
     /// Optical depth `∫ sigma_t dt` along `ray` over `[0, t_max]` with
     /// `sigma_t = scale * density`. Stops adding once the primal exceeds
     /// `cutoff` (beyond which `exp(-depth)` is zero in `f64`).
-    pub fn optical_depth<R: Real>(
-        &self,
-        density: &Grid<R>,
-        scale: f64,
-        ray: &Ray,
-        t_max: f64,
-        jitter: f64,
-    ) -> R {
+    pub fn optical_depth<R: Real>(&self, density: &Grid<R>, scale: f64, ray: &Ray, t_max: f64, jitter: f64) -> R {
         const CUTOFF: f64 = 800.0;
         let mut depth = R::cst(0.0);
         self.steps(ray, t_max, jitter, |s| {
@@ -102,23 +85,13 @@ impl<'a> Marcher<'a> {
     }
 
     /// Transmittance from `from` to `to` in a straight line.
-    pub fn transmittance<R: Real>(
-        &self,
-        density: &Grid<R>,
-        scale: f64,
-        from: &Vec3,
-        to: &Vec3,
-        jitter: f64,
-    ) -> R {
+    pub fn transmittance<R: Real>(&self, density: &Grid<R>, scale: f64, from: &Vec3, to: &Vec3, jitter: f64) -> R {
         let d = to - from;
         let dist = d.norm();
         if dist == 0.0 {
             return R::cst(1.0);
         }
-        let ray = Ray {
-            origin: *from,
-            dir: d / dist,
-        };
+        let ray = Ray { origin: *from, dir: d / dist };
         (-self.optical_depth(density, scale, &ray, dist, jitter)).exp()
     }
 }

@@ -51,12 +51,7 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
 
     let t = Instant::now();
     let emitters = emitters(&scene.lights, &majorant);
-    let tracer = Tracer {
-        density,
-        medium: &scene.medium,
-        marcher: &marcher,
-        emitters: &emitters,
-    };
+    let tracer = Tracer { density, medium: &scene.medium, marcher: &marcher, emitters: &emitters };
     let photons = tracer.trace(settings.photons, settings.seed);
     timings.trace = t.elapsed().as_secs_f64();
 
@@ -65,15 +60,9 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
         None
     } else {
         let geometry = SplatGeometry::new(density, settings.kernel_radius_for(density));
-        let norms = geometry.normalisers(&photons);
+        let kernel = geometry.kernel(&photons);
         let positions: Vec<_> = scene.cameras.iter().map(|c| c.position).collect();
-        Some(geometry.estimate(
-            &photons,
-            &norms,
-            &positions,
-            scene.medium.albedo,
-            scene.medium.g,
-        ))
+        Some(geometry.estimate(&photons, &kernel, &positions, scene.medium.albedo, scene.medium.g))
     };
     timings.gather = t.elapsed().as_secs_f64();
 
@@ -94,18 +83,10 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
         .map(|(c, camera)| {
             let data = rays.image(camera, first_pixel, multiple.as_ref().map(|m| &m[c]));
             first_pixel += camera.pixels() as u64;
-            Image {
-                width: camera.width,
-                height: camera.height,
-                data,
-            }
+            Image { width: camera.width, height: camera.height, data }
         })
         .collect();
     timings.camera = t.elapsed().as_secs_f64();
     timings.total = start.elapsed().as_secs_f64();
-    PhotonRender {
-        images,
-        stored_photons: photons.len(),
-        timings,
-    }
+    PhotonRender { images, stored_photons: photons.len(), timings }
 }

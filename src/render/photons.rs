@@ -60,12 +60,7 @@ pub fn emitters(lights: &[Light], majorant: &Majorant) -> Vec<Emitter> {
             } else {
                 (to / d, (1.0 - (radius / d).powi(2)).max(0.0).sqrt())
             };
-            Emitter {
-                position: l.position,
-                axis,
-                cos_max,
-                power: l.intensity * cone_solid_angle(cos_max),
-            }
+            Emitter { position: l.position, axis, cos_max, power: l.intensity * cone_solid_angle(cos_max) }
         })
         .collect()
 }
@@ -95,9 +90,7 @@ impl Tracer<'_> {
             .into_par_iter()
             .map(|c| {
                 let range = c as u64 * CHUNK..((c as u64 + 1) * CHUNK).min(count);
-                let mut out = Vec::with_capacity(
-                    range.clone().count() * (self.medium.max_order as usize - 1),
-                );
+                let mut out = Vec::with_capacity(range.clone().count() * (self.medium.max_order as usize - 1));
                 let mut steps = Vec::new();
                 for i in range {
                     self.trace_one(i, count, total, seed, &mut steps, &mut out);
@@ -132,10 +125,7 @@ impl Tracer<'_> {
     ) {
         let mut rng = Rng::new(seed, Purpose::Photon, i);
         let e = self.emitter_of(i, count, total);
-        let mut ray = Ray {
-            origin: e.position,
-            dir: sample_cone(&e.axis, e.cos_max, rng.uniform(), rng.uniform()),
-        };
+        let mut ray = Ray { origin: e.position, dir: sample_cone(&e.axis, e.cos_max, rng.uniform(), rng.uniform()) };
         let mut power = total / count as f64;
         for order in 1..=self.medium.max_order {
             let Some((t, weight)) = self.forced_collision(&ray, &mut rng, steps) else {
@@ -144,34 +134,20 @@ impl Tracer<'_> {
             power *= weight;
             let pos = ray.at(t);
             if order >= 2 {
-                out.push(Photon {
-                    pos,
-                    dir: ray.dir,
-                    power,
-                    path: i as u32,
-                    order: order as u8,
-                });
+                out.push(Photon { pos, dir: ray.dir, power, path: i as u32, order: order as u8 });
             }
             if order == self.medium.max_order {
                 return;
             }
             power *= self.medium.albedo;
-            ray = Ray {
-                origin: pos,
-                dir: hg_sample(self.medium.g, &ray.dir, rng.uniform(), rng.uniform()),
-            };
+            ray = Ray { origin: pos, dir: hg_sample(self.medium.g, &ray.dir, rng.uniform(), rng.uniform()) };
         }
     }
 
     /// A collision distance along `ray` drawn from `sigma_t T / (1 - T_all)`
     /// over the ray's part in the medium, and the weight `1 - T_all`;
     /// `None` if the ray meets no medium.
-    fn forced_collision(
-        &self,
-        ray: &Ray,
-        rng: &mut Rng,
-        steps: &mut Vec<(Step, f64)>,
-    ) -> Option<(f64, f64)> {
+    fn forced_collision(&self, ray: &Ray, rng: &mut Rng, steps: &mut Vec<(Step, f64)>) -> Option<(f64, f64)> {
         let scale = self.medium.sigma_t_scale;
         steps.clear();
         let mut depth = 0.0;

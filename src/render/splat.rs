@@ -8,8 +8,10 @@
 //! density estimate with kernel (Epanechnikov ∘ trilinear hat), computed
 //! once per photon instead of once per sample and neighbour.
 //!
-//! The grid's cells are the density voxels, coarsened where the radius is
-//! so large that a photon would touch more than about 5^3 nodes.
+//! The kernel weights do not depend on the camera and are computed once
+//! ([`Kernel`]); each camera then only scales and adds them. The node grid
+//! is the density's voxel centres, coarsened where the radius is so large
+//! that a photon would touch more than about 5^3 nodes.
 
 use super::photons::Photon;
 use crate::math::Vec3;
@@ -24,7 +26,24 @@ pub struct SplatGeometry {
     pub nodes: Grid<f64>,
     /// Kernel radius (world units, > 0).
     pub radius: f64,
+    /// Node spacing along x, y, z.
+    cell: Vec3,
 }
+
+/// The normalised kernel weights of every photon: photon `p` deposits
+/// `weights[n]` of its value on node `nodes[n]` for `n` in `start[p]..start[p+1]`.
+#[derive(Clone, Debug, Default)]
+pub struct Kernel {
+    /// Offsets into `nodes` and `weights`, one more than there are photons.
+    pub start: Vec<usize>,
+    /// Flat node indices.
+    pub nodes: Vec<u32>,
+    /// Weights; those of one photon sum to 1 / (node cell volume).
+    pub weights: Vec<f32>,
+}
+
+/// z-planes per parallel task of the estimate.
+const SLAB: usize = 4;
 
 impl SplatGeometry {
     /// Nodes at the density's voxel centres, coarsened to cells of at least `radius / 2.5`.
@@ -36,142 +55,127 @@ impl SplatGeometry {
             ((extent[a] / cell).round() as usize).clamp(1, density.shape[2 - a])
         };
         let shape = [axis(2), axis(1), axis(0)];
-        let nodes = Grid::new(
-            density.lo,
-            density.hi,
-            shape,
-            vec![0.0; shape.iter().product()],
-        );
-        SplatGeometry { nodes, radius }
+        let nodes = Grid::new(density.lo, density.hi, shape, vec![0.0; shape.iter().product()]);
+        let cell = nodes.voxel_size();
+        SplatGeometry { nodes, radius, cell }
     }
 
-    /// The node index range (inclusive) along axis `a` (0 = x) within the radius of `x`.
+    /// The node index range `lo..hi` along axis `a` (0 = x) within the radius of `x`.
     fn range(&self, x: &Vec3, a: usize) -> (usize, usize) {
         let n = self.nodes.shape[2 - a];
-        let cell = (self.nodes.hi[a] - self.nodes.lo[a]) / n as f64;
-        let lo = ((x[a] - self.radius - self.nodes.lo[a]) / cell - 0.5)
-            .ceil()
-            .max(0.0) as usize;
-        let hi = (((x[a] + self.radius - self.nodes.lo[a]) / cell - 0.5)
-            .floor()
-            .max(-1.0)
-            + 1.0) as usize;
+        let u = |v: f64| (v - self.nodes.lo[a]) / self.cell[a] - 0.5;
+        let lo = u(x[a] - self.radius).ceil().max(0.0) as usize;
+        let hi = (u(x[a] + self.radius).floor().max(-1.0) + 1.0) as usize;
         (lo.min(n), hi.min(n))
     }
 
-    /// Calls `deposit(flat_index, weight)` for the nodes a photon at `x` reaches,
-    /// restricted to z-planes `k_range`; weights over all planes sum to 1.
-    fn for_each_weight(
-        &self,
-        x: &Vec3,
-        norm: f64,
-        k_range: (usize, usize),
-        mut deposit: impl FnMut(usize, f64),
-    ) {
-        if norm == 0.0 {
-            // No node within the radius: the trilinear hat keeps the photon's power.
-            if let Some(s) = self.nodes.stencil(x) {
-                for c in 0..8 {
-                    let k = s.index[c] / (self.nodes.shape[1] * self.nodes.shape[2]);
-                    if k >= k_range.0 && k < k_range.1 {
-                        deposit(s.index[c], s.weight[c]);
-                    }
-                }
-            }
-            return;
-        }
+    /// Appends the normalised weights of a photon at `x` to `nodes`/`weights`.
+    fn photon_weights(&self, x: &Vec3, nodes: &mut Vec<u32>, weights: &mut Vec<f32>) {
+        let first = nodes.len();
         let r2 = self.radius * self.radius;
         let (i0, i1) = self.range(x, 0);
         let (j0, j1) = self.range(x, 1);
         let (k0, k1) = self.range(x, 2);
-        for k in k0.max(k_range.0)..k1.min(k_range.1) {
-            for j in j0..j1 {
-                for i in i0..i1 {
-                    let d2 = (self.nodes.voxel_center(k, j, i) - x).norm_squared();
-                    if d2 < r2 {
-                        deposit(self.nodes.index(k, j, i), (1.0 - d2 / r2) / norm);
-                    }
-                }
-            }
-        }
-    }
-
-    /// Sum of the unnormalised kernel weights of a photon at `x` (0: no node in reach).
-    fn kernel_sum(&self, x: &Vec3) -> f64 {
-        let mut sum = 0.0;
-        let r2 = self.radius * self.radius;
-        let (i0, i1) = self.range(x, 0);
-        let (j0, j1) = self.range(x, 1);
-        let (k0, k1) = self.range(x, 2);
+        let mut raw = Vec::with_capacity((i1 - i0) * (j1 - j0) * (k1 - k0));
+        let centre = |k: usize, a: usize| self.nodes.lo[a] + (k as f64 + 0.5) * self.cell[a];
         for k in k0..k1 {
+            let dz = centre(k, 2) - x.z;
             for j in j0..j1 {
+                let dy = centre(j, 1) - x.y;
                 for i in i0..i1 {
-                    let d2 = (self.nodes.voxel_center(k, j, i) - x).norm_squared();
+                    let dx = centre(i, 0) - x.x;
+                    let d2 = dx * dx + dy * dy + dz * dz;
                     if d2 < r2 {
-                        sum += 1.0 - d2 / r2;
+                        nodes.push(self.nodes.index(k, j, i) as u32);
+                        raw.push(1.0 - d2 / r2);
                     }
                 }
             }
         }
-        sum
+        let cell_volume = self.cell.product();
+        let sum: f64 = raw.iter().sum();
+        if sum > 0.0 {
+            weights.extend(raw.iter().map(|w| (w / (sum * cell_volume)) as f32));
+        } else if let Some(s) = self.nodes.stencil(x) {
+            // No node within the radius: the trilinear hat keeps the photon's power.
+            nodes.truncate(first);
+            for c in 0..8 {
+                nodes.push(s.index[c] as u32);
+                weights.push((s.weight[c] / cell_volume) as f32);
+            }
+        }
     }
 
-    /// Per-photon normalisers (parallel, in photon order).
-    pub fn normalisers(&self, photons: &[Photon]) -> Vec<f64> {
-        photons
-            .par_iter()
-            .map(|p| self.kernel_sum(&p.pos))
-            .collect()
+    /// The kernel weights of all photons (parallel, deterministic).
+    pub fn kernel(&self, photons: &[Photon]) -> Kernel {
+        let parts: Vec<(Vec<usize>, Vec<u32>, Vec<f32>)> = photons
+            .par_chunks(1024)
+            .map(|chunk| {
+                let (mut counts, mut nodes, mut weights) = (Vec::with_capacity(chunk.len()), vec![], vec![]);
+                for p in chunk {
+                    let before = nodes.len();
+                    self.photon_weights(&p.pos, &mut nodes, &mut weights);
+                    counts.push(nodes.len() - before);
+                }
+                (counts, nodes, weights)
+            })
+            .collect();
+        let mut kernel = Kernel { start: vec![0], ..Default::default() };
+        for (counts, nodes, weights) in parts {
+            for c in counts {
+                kernel.start.push(kernel.start.last().unwrap() + c);
+            }
+            kernel.nodes.extend(nodes);
+            kernel.weights.extend(weights);
+        }
+        kernel
     }
 
     /// For each camera position, the in-scattered radiance per unit length
     /// `albedo * sum_p p_HG * power * K` towards that camera, on the nodes.
     /// Deterministic: every node sums its photons in photon order.
-    pub fn estimate(
-        &self,
-        photons: &[Photon],
-        norms: &[f64],
-        cameras: &[Vec3],
-        albedo: f64,
-        g: f64,
-    ) -> Vec<Grid<f64>> {
+    pub fn estimate(&self, photons: &[Photon], kernel: &Kernel, cameras: &[Vec3], albedo: f64, g: f64) -> Vec<Grid<f64>> {
         let [nz, ny, nx] = self.nodes.shape;
-        let cell_volume = (self.nodes.hi - self.nodes.lo).product() / (nx * ny * nz) as f64;
-        let chunk = 4usize;
-        let n_chunks = nz.div_ceil(chunk);
         let plane = ny * nx;
-        let slabs: Vec<Vec<f64>> = (0..cameras.len() * n_chunks)
+        let n_slabs = nz.div_ceil(SLAB);
+        // Photons whose deposits reach each slab, in photon order.
+        let mut reach: Vec<Vec<u32>> = vec![vec![]; n_slabs];
+        for p in 0..photons.len() {
+            let nodes = &kernel.nodes[kernel.start[p]..kernel.start[p + 1]];
+            let (lo, hi) = nodes.iter().fold((usize::MAX, 0), |(lo, hi), &n| {
+                let s = n as usize / plane / SLAB;
+                (lo.min(s), hi.max(s))
+            });
+            for slab in reach.iter_mut().take(hi + 1).skip(lo) {
+                slab.push(p as u32);
+            }
+        }
+        let slabs: Vec<Vec<f64>> = (0..cameras.len() * n_slabs)
             .into_par_iter()
             .map(|task| {
-                let (cam, c) = (task / n_chunks, task % n_chunks);
-                let k_range = (c * chunk, ((c + 1) * chunk).min(nz));
-                let mut slab = vec![0.0; (k_range.1 - k_range.0) * plane];
-                for (p, &norm) in photons.iter().zip(norms) {
-                    let (k0, k1) = self.range(&p.pos, 2);
-                    let reach = if norm == 0.0 {
-                        (k0.saturating_sub(1), k1 + 1)
-                    } else {
-                        (k0, k1)
-                    };
-                    if reach.1 <= k_range.0 || reach.0 >= k_range.1 {
-                        continue;
-                    }
-                    let to_cam = cameras[cam] - p.pos;
+                let (cam, s) = (task / n_slabs, task % n_slabs);
+                let first = s * SLAB * plane;
+                let mut slab = vec![0.0; ((s + 1) * SLAB).min(nz) * plane - first];
+                for &p in &reach[s] {
+                    let photon = &photons[p as usize];
+                    let to_cam = cameras[cam] - photon.pos;
                     let dist = to_cam.norm();
                     if dist == 0.0 {
                         continue;
                     }
-                    let value =
-                        albedo * hg_eval(g, p.dir.dot(&(to_cam / dist))) * p.power / cell_volume;
-                    self.for_each_weight(&p.pos, norm, k_range, |idx, w| {
-                        slab[idx - k_range.0 * plane] += w * value
-                    });
+                    let value = albedo * hg_eval(g, photon.dir.dot(&(to_cam / dist))) * photon.power;
+                    let range = kernel.start[p as usize]..kernel.start[p as usize + 1];
+                    for (&n, &w) in kernel.nodes[range.clone()].iter().zip(&kernel.weights[range]) {
+                        if let Some(v) = (n as usize).checked_sub(first).and_then(|i| slab.get_mut(i)) {
+                            *v += w as f64 * value;
+                        }
+                    }
                 }
                 slab
             })
             .collect();
         slabs
-            .chunks(n_chunks)
+            .chunks(n_slabs)
             .map(|cam_slabs| {
                 let data: Vec<f64> = cam_slabs.iter().flatten().copied().collect();
                 Grid::new(self.nodes.lo, self.nodes.hi, self.nodes.shape, data)

@@ -34,13 +34,9 @@ impl Camera {
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let (right, up, forward) = self.basis();
         let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
-        let sx =
-            (2.0 * x / self.width as f64 - 1.0) * tan_half * self.width as f64 / self.height as f64;
+        let sx = (2.0 * x / self.width as f64 - 1.0) * tan_half * self.width as f64 / self.height as f64;
         let sy = (1.0 - 2.0 * y / self.height as f64) * tan_half;
-        Ray {
-            origin: self.position,
-            dir: (forward + right * sx + up * sy).normalize(),
-        }
+        Ray { origin: self.position, dir: (forward + right * sx + up * sy).normalize() }
     }
 
     /// Number of pixels.

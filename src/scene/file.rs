@@ -85,19 +85,14 @@ fn finite3(v: [f64; 3], field: &str) -> Result<Vec3> {
 
 /// Reads, validates and loads a scene file and its density.
 pub fn load(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error(format!("scene: cannot read {}: {e}", path.display())))?;
-    let file: SceneFile =
-        serde_json::from_str(&text).map_err(|e| Error(format!("scene {}: {e}", path.display())))?;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| Error(format!("scene: cannot read {}: {e}", path.display())))?;
+    let file: SceneFile = serde_json::from_str(&text).map_err(|e| Error(format!("scene {}: {e}", path.display())))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let density_path = dir.join(&file.volume.density);
     let array = npy::read(&density_path, "volume.density")?;
     if array.dtype != "<f4" && array.dtype != "<f8" {
-        bail!(
-            "volume.density: {} has dtype {}, need float32 or float64",
-            density_path.display(),
-            array.dtype
-        );
+        bail!("volume.density: {} has dtype {}, need float32 or float64", density_path.display(), array.dtype);
     }
     if array.shape.len() != 3 || array.shape.iter().any(|&n| n == 0) {
         bail!(
@@ -121,10 +116,7 @@ pub fn load(path: &Path) -> Result<Scene> {
         .iter()
         .enumerate()
         .map(|(n, l)| {
-            Ok(Light {
-                position: finite3(l.position, &format!("lights[{n}].position"))?,
-                intensity: l.intensity,
-            })
+            Ok(Light { position: finite3(l.position, &format!("lights[{n}].position"))?, intensity: l.intensity })
         })
         .collect::<Result<Vec<_>>>()?;
     let cameras = file
@@ -152,13 +144,7 @@ pub fn load(path: &Path) -> Result<Scene> {
         spp: r.spp.unwrap_or(defaults.spp),
         path_spp: r.path_spp.unwrap_or(defaults.path_spp),
     };
-    let scene = Scene {
-        density,
-        medium,
-        lights,
-        cameras,
-        render,
-    };
+    let scene = Scene { density, medium, lights, cameras, render };
     validate(&scene)?;
     Ok(scene)
 }
@@ -167,26 +153,18 @@ pub fn load(path: &Path) -> Result<Scene> {
 pub fn validate(scene: &Scene) -> Result<()> {
     let d = &scene.density;
     if (0..3).any(|a| !(d.hi[a] > d.lo[a])) {
-        bail!(
-            "volume.bbox_max: {:?} must exceed bbox_min {:?} on every axis",
-            d.hi.as_slice(),
-            d.lo.as_slice()
-        );
+        bail!("volume.bbox_max: {:?} must exceed bbox_min {:?} on every axis", d.hi.as_slice(), d.lo.as_slice());
     }
     if let Some(n) = d.data.iter().position(|v| !v.is_finite() || *v < 0.0) {
-        let (k, j, i) = (
-            n / (d.shape[1] * d.shape[2]),
-            (n / d.shape[2]) % d.shape[1],
-            n % d.shape[2],
+        let (k, j, i) = (n / (d.shape[1] * d.shape[2]), (n / d.shape[2]) % d.shape[1], n % d.shape[2]);
+        bail!(
+            "volume.density: value {} at voxel (k, j, i) = ({k}, {j}, {i}); densities must be finite and >= 0",
+            d.data[n]
         );
-        bail!("volume.density: value {} at voxel (k, j, i) = ({k}, {j}, {i}); densities must be finite and >= 0", d.data[n]);
     }
     let m = &scene.medium;
     if !(m.sigma_t_scale.is_finite() && m.sigma_t_scale >= 0.0) {
-        bail!(
-            "volume.sigma_t_scale: {} must be finite and >= 0",
-            m.sigma_t_scale
-        );
+        bail!("volume.sigma_t_scale: {} must be finite and >= 0", m.sigma_t_scale);
     }
     if !(0.0..=1.0).contains(&m.albedo) {
         bail!("volume.albedo: {} must be in [0, 1]", m.albedo);
@@ -199,10 +177,7 @@ pub fn validate(scene: &Scene) -> Result<()> {
     }
     for (n, l) in scene.lights.iter().enumerate() {
         if !(l.intensity.is_finite() && l.intensity >= 0.0) {
-            bail!(
-                "lights[{n}].intensity: {} must be finite and >= 0",
-                l.intensity
-            );
+            bail!("lights[{n}].intensity: {} must be finite and >= 0", l.intensity);
         }
     }
     if scene.cameras.is_empty() {
@@ -236,49 +211,30 @@ fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
         bail!("cameras[{n}]: image size {}x{} is empty", c.width, c.height);
     }
     if c.width.saturating_mul(c.height) > 1 << 26 {
-        bail!(
-            "cameras[{n}]: image size {}x{} is too large",
-            c.width,
-            c.height
-        );
+        bail!("cameras[{n}]: image size {}x{} is too large", c.width, c.height);
     }
     if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
-        bail!(
-            "cameras[{n}].fov_y_deg: {} must be in (0, 180)",
-            c.fov_y_deg
-        );
+        bail!("cameras[{n}].fov_y_deg: {} must be in (0, 180)", c.fov_y_deg);
     }
     let forward = c.look_at - c.position;
     if forward.norm() < 1e-12 {
         bail!("cameras[{n}].look_at: equals the camera position");
     }
     if c.up.norm() < 1e-12 || forward.normalize().cross(&c.up.normalize()).norm() < 1e-9 {
-        bail!(
-            "cameras[{n}].up: {:?} is zero or parallel to the viewing direction",
-            c.up.as_slice()
-        );
+        bail!("cameras[{n}].up: {:?} is zero or parallel to the viewing direction", c.up.as_slice());
     }
     // A 17x17 lattice of rays over the image, plus the pixel centres of a tiny image.
     let steps = 16;
     let hits = (0..=steps).any(|a| {
         (0..=steps).any(|b| {
-            let ray = c.ray(
-                a as f64 / steps as f64 * c.width as f64,
-                b as f64 / steps as f64 * c.height as f64,
-            );
+            let ray = c.ray(a as f64 / steps as f64 * c.width as f64, b as f64 / steps as f64 * c.height as f64);
             intersect_box(&ray, &density.lo, &density.hi).is_some()
         })
     });
     let hits = hits
         || (0..c.height.min(64)).any(|y| {
-            (0..c.width.min(64)).any(|x| {
-                intersect_box(
-                    &c.ray(x as f64 + 0.5, y as f64 + 0.5),
-                    &density.lo,
-                    &density.hi,
-                )
-                .is_some()
-            })
+            (0..c.width.min(64))
+                .any(|x| intersect_box(&c.ray(x as f64 + 0.5, y as f64 + 0.5), &density.lo, &density.hi).is_some())
         });
     if !hits {
         bail!("cameras[{n}]: looks at nothing (the volume's box is outside its field of view)");
@@ -288,8 +244,7 @@ fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
 
 /// Writes `scene` as `dir/name.json` with its density as `dir/density.npy` (float32).
 pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| Error(format!("cannot create {}: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir).map_err(|e| Error(format!("cannot create {}: {e}", dir.display())))?;
     let d = &scene.density;
     npy::write_f32(&dir.join("density.npy"), &d.shape, &d.data)?;
     let arr = |v: &Vec3| [v.x, v.y, v.z];
@@ -304,14 +259,7 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
             g: scene.medium.g,
             max_order: scene.medium.max_order,
         },
-        lights: scene
-            .lights
-            .iter()
-            .map(|l| LightFile {
-                position: arr(&l.position),
-                intensity: l.intensity,
-            })
-            .collect(),
+        lights: scene.lights.iter().map(|l| LightFile { position: arr(&l.position), intensity: l.intensity }).collect(),
         cameras: scene
             .cameras
             .iter()
@@ -334,6 +282,5 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
         },
     };
     let text = serde_json::to_string_pretty(&file).map_err(|e| Error(e.to_string()))?;
-    std::fs::write(dir.join(format!("{name}.json")), text + "\n")
-        .map_err(|e| Error(format!("cannot write scene: {e}")))
+    std::fs::write(dir.join(format!("{name}.json")), text + "\n").map_err(|e| Error(format!("cannot write scene: {e}")))
 }

@@ -51,28 +51,19 @@ pub struct RenderSettings {
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings {
-            photons: 300_000,
-            kernel_radius: None,
-            step: None,
-            seed: 0,
-            spp: 1,
-            path_spp: 256,
-        }
+        RenderSettings { photons: 300_000, kernel_radius: None, step: None, seed: 0, spp: 1, path_spp: 256 }
     }
 }
 
 impl RenderSettings {
     /// The kernel radius to use on `density` (explicit or default).
     pub fn kernel_radius_for(&self, density: &Grid<f64>) -> f64 {
-        self.kernel_radius
-            .unwrap_or_else(|| 2.0 * density.voxel_size().max())
+        self.kernel_radius.unwrap_or_else(|| 2.0 * density.voxel_size().max())
     }
 
     /// The ray-marching step to use on `density` (explicit or default).
     pub fn step_for(&self, density: &Grid<f64>) -> f64 {
-        self.step
-            .unwrap_or_else(|| 0.5 * density.voxel_size().min())
+        self.step.unwrap_or_else(|| 0.5 * density.voxel_size().min())
     }
 }
 

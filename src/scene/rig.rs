@@ -28,12 +28,7 @@ pub fn on_circle(r: f64, deg: f64) -> Vec3 {
 
 /// The paper's medium: g = 0.9, albedo 0.9, sigma_t_scale 20, up to 3rd order.
 pub fn paper_medium() -> Medium {
-    Medium {
-        sigma_t_scale: 20.0,
-        albedo: 0.9,
-        g: 0.9,
-        max_order: 3,
-    }
+    Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.9, max_order: 3 }
 }
 
 /// The paper's five cameras with `res x res` images.
@@ -55,10 +50,7 @@ pub fn paper_cameras(res: usize) -> Vec<Camera> {
 pub fn paper_lights() -> Vec<Light> {
     LIGHT_AZIMUTHS_DEG
         .iter()
-        .map(|&a| Light {
-            position: on_circle(LIGHT_RADIUS, a),
-            intensity: LIGHT_INTENSITY,
-        })
+        .map(|&a| Light { position: on_circle(LIGHT_RADIUS, a), intensity: LIGHT_INTENSITY })
         .collect()
 }
 

@@ -21,6 +21,8 @@ pub struct Grid<T> {
     pub shape: [usize; 3],
     /// The values, C order.
     pub data: Vec<T>,
+    /// Voxels per world unit along x, y, z (cached for lookups).
+    to_voxel: Vec3,
 }
 
 /// The 8 voxels (flat indices) and trilinear weights that make up the value
@@ -36,17 +38,10 @@ pub struct Stencil {
 impl<T: Copy> Grid<T> {
     /// A grid holding `data` (C order, `shape = [nz, ny, nx]`).
     pub fn new(lo: Vec3, hi: Vec3, shape: [usize; 3], data: Vec<T>) -> Self {
-        assert_eq!(
-            data.len(),
-            shape.iter().product::<usize>(),
-            "grid data does not match its shape"
-        );
-        Grid {
-            lo,
-            hi,
-            shape,
-            data,
-        }
+        assert_eq!(data.len(), shape.iter().product::<usize>(), "grid data does not match its shape");
+        let e = hi - lo;
+        let to_voxel = Vec3::new(shape[2] as f64 / e.x, shape[1] as f64 / e.y, shape[0] as f64 / e.z);
+        Grid { lo, hi, shape, data, to_voxel }
     }
 
     /// A grid of the same geometry holding `f` of every value.
@@ -56,6 +51,7 @@ impl<T: Copy> Grid<T> {
             hi: self.hi,
             shape: self.shape,
             data: self.data.iter().map(|&v| f(v)).collect(),
+            to_voxel: self.to_voxel,
         }
     }
 
@@ -78,22 +74,13 @@ impl<T: Copy> Grid<T> {
     /// Voxel size along x, y, z (world units).
     pub fn voxel_size(&self) -> Vec3 {
         let e = self.hi - self.lo;
-        Vec3::new(
-            e.x / self.shape[2] as f64,
-            e.y / self.shape[1] as f64,
-            e.z / self.shape[0] as f64,
-        )
+        Vec3::new(e.x / self.shape[2] as f64, e.y / self.shape[1] as f64, e.z / self.shape[0] as f64)
     }
 
     /// World position of the centre of voxel `(k, j, i)`.
     pub fn voxel_center(&self, k: usize, j: usize, i: usize) -> Vec3 {
         let v = self.voxel_size();
-        self.lo
-            + Vec3::new(
-                (i as f64 + 0.5) * v.x,
-                (j as f64 + 0.5) * v.y,
-                (k as f64 + 0.5) * v.z,
-            )
+        self.lo + Vec3::new((i as f64 + 0.5) * v.x, (j as f64 + 0.5) * v.y, (k as f64 + 0.5) * v.z)
     }
 
     /// True if `p` lies in the closed box.
@@ -102,35 +89,39 @@ impl<T: Copy> Grid<T> {
         (0..3).all(|a| p[a] >= self.lo[a] && p[a] <= self.hi[a])
     }
 
-    /// The voxels and weights of the trilinear value at `p`, or `None` outside the box.
-    #[inline]
-    pub fn stencil(&self, p: &Vec3) -> Option<Stencil> {
+    /// Per axis (x, y, z): lower voxel index, index step to the upper one
+    /// (0 on a one-voxel axis) and the upper one's weight; `None` outside the box.
+    #[inline(always)]
+    fn axes(&self, p: &Vec3) -> Option<([usize; 3], [usize; 3], [f64; 3])> {
         if !self.contains(p) {
             return None;
         }
-        // Per axis (x, y, z): lower index, upper index, weight of the upper one.
         let mut lo_i = [0usize; 3];
-        let mut hi_i = [0usize; 3];
+        let mut step = [0usize; 3];
         let mut frac = [0f64; 3];
         for a in 0..3 {
             let n = self.shape[2 - a];
-            let u = (p[a] - self.lo[a]) / (self.hi[a] - self.lo[a]) * n as f64 - 0.5;
+            let u = (p[a] - self.lo[a]) * self.to_voxel[a] - 0.5;
             // Clamping to [0, n-1] gives the edge value in the outer half-voxel shell.
             let u = u.clamp(0.0, (n - 1) as f64);
-            let i0 = (u.floor() as usize).min(n.saturating_sub(2));
+            let i0 = (u as usize).min(n.saturating_sub(2));
             lo_i[a] = i0;
-            hi_i[a] = (i0 + 1).min(n - 1);
+            step[a] = usize::from(n > 1);
             frac[a] = u - i0 as f64;
         }
-        let mut s = Stencil {
-            index: [0; 8],
-            weight: [0.0; 8],
-        };
+        Some((lo_i, step, frac))
+    }
+
+    /// The voxels and weights of the trilinear value at `p`, or `None` outside the box.
+    #[inline]
+    pub fn stencil(&self, p: &Vec3) -> Option<Stencil> {
+        let (lo_i, step, frac) = self.axes(p)?;
+        let mut s = Stencil { index: [0; 8], weight: [0.0; 8] };
         for c in 0..8 {
             let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
-            let i = if bx == 1 { hi_i[0] } else { lo_i[0] };
-            let j = if by == 1 { hi_i[1] } else { lo_i[1] };
-            let k = if bz == 1 { hi_i[2] } else { lo_i[2] };
+            let i = lo_i[0] + bx * step[0];
+            let j = lo_i[1] + by * step[1];
+            let k = lo_i[2] + bz * step[2];
             let wx = if bx == 1 { frac[0] } else { 1.0 - frac[0] };
             let wy = if by == 1 { frac[1] } else { 1.0 - frac[1] };
             let wz = if bz == 1 { frac[2] } else { 1.0 - frac[2] };
@@ -145,16 +136,21 @@ impl<R: Real> Grid<R> {
     /// The trilinear value at `p` (0 outside the box).
     #[inline]
     pub fn at(&self, p: &Vec3) -> R {
-        match self.stencil(p) {
-            None => R::cst(0.0),
-            Some(s) => {
-                let mut v = self.data[s.index[0]] * s.weight[0];
-                for c in 1..8 {
-                    v += self.data[s.index[c]] * s.weight[c];
-                }
-                v
-            }
-        }
+        let Some((lo_i, step, f)) = self.axes(p) else { return R::cst(0.0) };
+        let (sx, sy, sz) = (step[0], step[1] * self.shape[2], step[2] * self.shape[1] * self.shape[2]);
+        let base = self.index(lo_i[2], lo_i[1], lo_i[0]);
+        let d = &self.data;
+        // Weights in f64 first: 8 products of R by f64, the cheapest form for duals.
+        let (gx, gy, gz) = (1.0 - f[0], 1.0 - f[1], 1.0 - f[2]);
+        let (w00, w10, w01, w11) = (gy * gz, f[1] * gz, gy * f[2], f[1] * f[2]);
+        d[base] * (gx * w00)
+            + d[base + sx] * (f[0] * w00)
+            + d[base + sy] * (gx * w10)
+            + d[base + sy + sx] * (f[0] * w10)
+            + d[base + sz] * (gx * w01)
+            + d[base + sz + sx] * (f[0] * w01)
+            + d[base + sz + sy] * (gx * w11)
+            + d[base + sz + sy + sx] * (f[0] * w11)
     }
 }
 
@@ -205,12 +201,7 @@ mod tests {
         // Outer half-voxel shell in x: clamped to the edge value.
         assert!((g.at(&Vec3::new(0.01, a.y, a.z)) - 10.0).abs() < 1e-12);
         assert_eq!(g.at(&Vec3::new(-0.01, a.y, a.z)), 0.0);
-        let w: f64 = g
-            .stencil(&Vec3::new(0.3, 0.7, 0.2))
-            .unwrap()
-            .weight
-            .iter()
-            .sum();
+        let w: f64 = g.stencil(&Vec3::new(0.3, 0.7, 0.2)).unwrap().weight.iter().sum();
         assert!((w - 1.0).abs() < 1e-12);
     }
 

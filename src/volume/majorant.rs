@@ -24,8 +24,7 @@ impl Majorant {
         let n = [nx.div_ceil(block), ny.div_ceil(block), nz.div_ceil(block)];
         let cell = grid.voxel_size() * block as f64;
         // Points in a block read voxels one beyond it on each side (trilinear reach).
-        let range =
-            |m: usize, len: usize| (m * block).saturating_sub(1)..((m + 1) * block + 1).min(len);
+        let range = |m: usize, len: usize| (m * block).saturating_sub(1)..((m + 1) * block + 1).min(len);
         let mut max = vec![0.0; n[0] * n[1] * n[2]];
         for bz in 0..n[2] {
             for by in 0..n[1] {
@@ -42,12 +41,7 @@ impl Majorant {
                 }
             }
         }
-        Majorant {
-            lo: grid.lo,
-            cell,
-            n,
-            max,
-        }
+        Majorant { lo: grid.lo, cell, n, max }
     }
 
     /// The largest bound of all blocks.
@@ -75,12 +69,7 @@ impl Majorant {
         }
         any.then(|| {
             let f = |b: [usize; 3]| {
-                self.lo
-                    + Vec3::new(
-                        b[0] as f64 * self.cell.x,
-                        b[1] as f64 * self.cell.y,
-                        b[2] as f64 * self.cell.z,
-                    )
+                self.lo + Vec3::new(b[0] as f64 * self.cell.x, b[1] as f64 * self.cell.y, b[2] as f64 * self.cell.z)
             };
             (f(lo), f(hi))
         })
@@ -126,8 +115,7 @@ impl Majorant {
                 2
             };
             let t_exit = t_next[a].min(t1);
-            let flat =
-                ((idx[2] as usize) * self.n[1] + idx[1] as usize) * self.n[0] + idx[0] as usize;
+            let flat = ((idx[2] as usize) * self.n[1] + idx[1] as usize) * self.n[0] + idx[0] as usize;
             if t_exit > t && !visit(t, t_exit, self.max[flat]) {
                 return;
             }
@@ -167,17 +155,9 @@ mod tests {
         let n = 10;
         let mut data = vec![0.0; n * n * n];
         data[(5 * n + 5) * n + 5] = 2.0;
-        let g = Grid::new(
-            Vec3::from_element(-0.5),
-            Vec3::from_element(0.5),
-            [n, n, n],
-            data,
-        );
+        let g = Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [n, n, n], data);
         let m = Majorant::build(&g, 4);
-        let ray = Ray {
-            origin: Vec3::new(-1.0, 0.03, 0.01),
-            dir: Vec3::new(1.0, 0.02, 0.01).normalize(),
-        };
+        let ray = Ray { origin: Vec3::new(-1.0, 0.03, 0.01), dir: Vec3::new(1.0, 0.02, 0.01).normalize() };
         let (t0, t1) = crate::math::intersect_box(&ray, &g.lo, &g.hi).unwrap();
         let mut last = t0;
         m.walk(&ray, t0, t1, |ta, tb, bound| {
