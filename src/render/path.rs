@@ -102,7 +102,11 @@ pub fn render_path(scene: &Scene, opts: &PathOptions) -> PathRender {
 /// Renders every camera of `scene`, calling `progress(done_pixels,
 /// total_pixels)` from the worker threads now and then (calls may arrive
 /// slightly out of order; the last one reports `total_pixels`).
-pub fn render_path_with_progress(scene: &Scene, opts: &PathOptions, progress: &(dyn Fn(usize, usize) + Sync)) -> PathRender {
+pub fn render_path_with_progress(
+    scene: &Scene,
+    opts: &PathOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> PathRender {
     let offsets: Vec<usize> = scene
         .cameras
         .iter()
@@ -142,7 +146,11 @@ pub fn render_path_with_progress(scene: &Scene, opts: &PathOptions, progress: &(
     let (mut radiance, mut std_err) = (Vec::new(), Vec::new());
     for (cam, &start) in scene.cameras.iter().zip(&offsets) {
         let slice = &pixels[start..start + cam.pixels()];
-        let image = |f: fn(&(f64, f64)) -> f64| Image { width: cam.width, height: cam.height, data: slice.iter().map(f).collect() };
+        let image = |f: fn(&(f64, f64)) -> f64| Image {
+            width: cam.width,
+            height: cam.height,
+            data: slice.iter().map(f).collect(),
+        };
         radiance.push(image(|p| p.0));
         std_err.push(image(|p| p.1));
     }
@@ -181,7 +189,8 @@ impl<'a> Tracer<'a> {
         let m = &scene.medium;
         let max_order = opts.max_order.unwrap_or(m.max_order);
         let min_order = opts.min_order.max(1);
-        let lights: Vec<(Vec3, f64)> = scene.lights.iter().filter(|l| l.intensity > 0.0).map(|l| (l.position, l.intensity)).collect();
+        let lights: Vec<(Vec3, f64)> =
+            scene.lights.iter().filter(|l| l.intensity > 0.0).map(|l| (l.position, l.intensity)).collect();
         if opts.spp == 0 || lights.is_empty() || m.albedo <= 0.0 || m.sigma_t_scale <= 0.0 || min_order > max_order {
             return None;
         }
@@ -348,7 +357,13 @@ mod tests {
     /// A scene on the box [-0.5, 0.5]^3 with an `n^3` grid.
     fn scene(n: usize, data: Vec<f64>, medium: Medium, lights: Vec<Light>, cameras: Vec<Camera>) -> Scene {
         let (lo, hi) = unit_box();
-        Scene { density: Grid::new(lo, hi, [n, n, n], data), medium, lights, cameras, render: RenderSettings::default() }
+        Scene {
+            density: Grid::new(lo, hi, [n, n, n], data),
+            medium,
+            lights,
+            cameras,
+            render: RenderSettings::default(),
+        }
     }
 
     fn medium(sigma_t_scale: f64, albedo: f64, g: f64, max_order: u32) -> Medium {
@@ -384,7 +399,15 @@ mod tests {
     /// Single scattering into pixel `(px, py)` by quadrature: a `sub x sub`
     /// midpoint rule over the footprint, Simpson with `steps` intervals along
     /// each ray; `tr(a, b)` is the transmittance between two points.
-    fn single_scatter_quadrature(s: &Scene, cam: &Camera, px: usize, py: usize, sub: usize, steps: usize, tr: &dyn Fn(&Vec3, &Vec3) -> f64) -> f64 {
+    fn single_scatter_quadrature(
+        s: &Scene,
+        cam: &Camera,
+        px: usize,
+        py: usize,
+        sub: usize,
+        steps: usize,
+        tr: &dyn Fn(&Vec3, &Vec3) -> f64,
+    ) -> f64 {
         let (lo, hi) = unit_box();
         let m = &s.medium;
         let mut total = 0.0;
@@ -429,7 +452,10 @@ mod tests {
 
     fn assert_close(what: &str, mc: f64, se: f64, reference: f64, se_ref: f64) {
         let tol = 3.0 * (se * se + se_ref * se_ref).sqrt() + 0.005 * reference.abs();
-        eprintln!("{what}: path {mc:.6e} +- {se:.2e}, reference {reference:.6e} +- {se_ref:.2e}, rel diff {:.4}", (mc - reference) / reference);
+        eprintln!(
+            "{what}: path {mc:.6e} +- {se:.2e}, reference {reference:.6e} +- {se_ref:.2e}, rel diff {:.4}",
+            (mc - reference) / reference
+        );
         assert!((mc - reference).abs() <= tol, "{what}: {mc} vs {reference}, tolerance {tol}");
     }
 
@@ -437,14 +463,21 @@ mod tests {
     fn single_scattering_matches_quadrature_homogeneous() {
         let (rho, scale) = (0.05, 20.0); // sigma_t = 1
         let cam = camera(Vec3::new(0.0, 0.0, 3.0), 8, 20.0);
-        let s = scene(4, vec![rho; 64], medium(scale, 0.8, 0.5, 1), vec![light(1.5, 1.0, 0.5, 10.0), light(-0.3, -2.0, -1.0, 5.0)], vec![cam.clone()]);
+        let s = scene(
+            4,
+            vec![rho; 64],
+            medium(scale, 0.8, 0.5, 1),
+            vec![light(1.5, 1.0, 0.5, 10.0), light(-0.3, -2.0, -1.0, 5.0)],
+            vec![cam.clone()],
+        );
         let r = render_path(&s, &opts(8192, 1, 1, 1));
         let tr = |a: &Vec3, b: &Vec3| (-rho * scale * length_in_box(a, b)).exp();
         let (px, py) = (3, 4);
         let q = single_scatter_quadrature(&s, &cam, px, py, 8, 400, &tr);
         let i = py * 8 + px;
         assert_close("pixel (3, 4)", r.radiance[0].data[i], r.std_err[0].data[i], q, 0.0);
-        let q_mean = (0..64).map(|i| single_scatter_quadrature(&s, &cam, i % 8, i / 8, 4, 200, &tr)).sum::<f64>() / 64.0;
+        let q_mean =
+            (0..64).map(|i| single_scatter_quadrature(&s, &cam, i % 8, i / 8, 4, 200, &tr)).sum::<f64>() / 64.0;
         let (m, se) = image_mean(&r, 0);
         assert_close("image mean", m, se, q_mean, 0.0);
     }
@@ -474,7 +507,8 @@ mod tests {
             let t1 = t1.min(len);
             let k = 300;
             let h = (t1 - t0) / k as f64;
-            let tau: f64 = (0..k).map(|i| s.density.at(&(a + d / len * (t0 + (i as f64 + 0.5) * h)))).sum::<f64>() * h * scale;
+            let tau: f64 =
+                (0..k).map(|i| s.density.at(&(a + d / len * (t0 + (i as f64 + 0.5) * h)))).sum::<f64>() * h * scale;
             (-tau).exp()
         };
         let q = single_scatter_quadrature(&s, &cam, 0, 0, 4, 200, &tr);
@@ -511,9 +545,19 @@ mod tests {
                 let dist = rng.uniform() * s_exit; // pdf 1 / s_exit; dy = dist^2 d(dist) dw cancels 1 / dist^2
                 let y = x + w * dist;
                 let w_l = (y - l.position).normalize();
-                let light_in = l.intensity * (-sigma_t * length_in_box(&y, &l.position)).exp() / (y - l.position).norm_squared();
-                v = (t1 - t0) * (-sigma_t * (t - t0)).exp() * sigma_s * p_hg(g, (-w).dot(&-ray.dir)) * 4.0 * PI * s_exit
-                    * (-sigma_t * dist).exp() * sigma_s * p_hg(g, w_l.dot(&-w)) * light_in;
+                let light_in =
+                    l.intensity * (-sigma_t * length_in_box(&y, &l.position)).exp() / (y - l.position).norm_squared();
+                v = (t1 - t0)
+                    * (-sigma_t * (t - t0)).exp()
+                    * sigma_s
+                    * p_hg(g, (-w).dot(&-ray.dir))
+                    * 4.0
+                    * PI
+                    * s_exit
+                    * (-sigma_t * dist).exp()
+                    * sigma_s
+                    * p_hg(g, w_l.dot(&-w))
+                    * light_in;
             }
             sum += v;
             sum2 += v * v;
@@ -537,7 +581,13 @@ mod tests {
     #[test]
     fn bit_identical_for_any_thread_count() {
         let cams = vec![camera(Vec3::new(0.0, 0.0, 2.5), 8, 30.0), camera(Vec3::new(2.0, 0.5, 1.0), 6, 35.0)];
-        let s = scene(6, noise_grid(6, 4), medium(10.0, 0.9, 0.8, 3), vec![light(1.0, 2.0, 2.0, 50.0), light(-2.0, 0.0, 0.0, 20.0)], cams);
+        let s = scene(
+            6,
+            noise_grid(6, 4),
+            medium(10.0, 0.9, 0.8, 3),
+            vec![light(1.0, 2.0, 2.0, 50.0), light(-2.0, 0.0, 0.0, 20.0)],
+            cams,
+        );
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| render_path(&s, &opts(8, 11, 1, 3)))
@@ -550,7 +600,13 @@ mod tests {
 
     #[test]
     fn progress_reaches_total() {
-        let s = scene(4, vec![0.1; 64], medium(10.0, 0.9, 0.0, 2), vec![light(0.0, 2.0, 0.0, 1.0)], vec![camera(Vec3::new(0.0, 0.0, 2.0), 20, 40.0)]);
+        let s = scene(
+            4,
+            vec![0.1; 64],
+            medium(10.0, 0.9, 0.0, 2),
+            vec![light(0.0, 2.0, 0.0, 1.0)],
+            vec![camera(Vec3::new(0.0, 0.0, 2.0), 20, 40.0)],
+        );
         let (calls, last) = (AtomicUsize::new(0), AtomicUsize::new(0));
         render_path_with_progress(&s, &opts(1, 0, 1, 2), &|done, total| {
             assert!(done <= total && total == 400);
@@ -565,7 +621,11 @@ mod tests {
     fn orders_isolate_and_add_up() {
         let cam = camera(Vec3::new(0.0, 0.5, 2.5), 8, 30.0);
         let s = scene(6, noise_grid(6, 7), medium(8.0, 0.95, 0.5, 3), vec![light(1.5, 1.5, 1.0, 40.0)], vec![cam]);
-        let (one, two, both) = (render_path(&s, &opts(1024, 1, 1, 1)), render_path(&s, &opts(1024, 2, 2, 2)), render_path(&s, &opts(1024, 3, 1, 2)));
+        let (one, two, both) = (
+            render_path(&s, &opts(1024, 1, 1, 1)),
+            render_path(&s, &opts(1024, 2, 2, 2)),
+            render_path(&s, &opts(1024, 3, 1, 2)),
+        );
         let ((m1, s1), (m2, s2), (m12, s12)) = (image_mean(&one, 0), image_mean(&two, 0), image_mean(&both, 0));
         assert!(m2 > 0.05 * m1, "order 2 should matter here: {m2} vs {m1}");
         assert_close("order 1 + order 2 vs max_order 2", m1 + m2, (s1 * s1 + s2 * s2).sqrt(), m12, s12);
@@ -593,11 +653,22 @@ mod tests {
     #[test]
     fn finite_in_extreme_cases() {
         let cam = camera(Vec3::new(0.3, 0.2, 2.0), 8, 45.0);
-        let lights = || vec![light(0.0, 0.0, 0.0, 50.0), light(0.5, 0.1, -0.2, 10.0), light(-0.5, 0.5, 0.5, 10.0), light(0.0, 3.0, 0.0, 0.0), light(1.0, 1.0, 2.0, 10.0)];
+        let lights = || {
+            vec![
+                light(0.0, 0.0, 0.0, 50.0),
+                light(0.5, 0.1, -0.2, 10.0),
+                light(-0.5, 0.5, 0.5, 10.0),
+                light(0.0, 3.0, 0.0, 0.0),
+                light(1.0, 1.0, 2.0, 10.0),
+            ]
+        };
         let mut hot = vec![0.0; 216];
         hot[3 * 36 + 2 * 6 + 3] = 1e4 / 20.0;
         let cases = [
-            ("optical depth 1e4", scene(4, vec![1e4 / 20.0; 64], medium(20.0, 0.9, 0.9, 4), lights(), vec![cam.clone()])),
+            (
+                "optical depth 1e4",
+                scene(4, vec![1e4 / 20.0; 64], medium(20.0, 0.9, 0.9, 4), lights(), vec![cam.clone()]),
+            ),
             ("one hot voxel", scene(6, hot, medium(20.0, 1.0, 0.5, 4), lights(), vec![cam.clone()])),
             ("g = 0.99", scene(6, noise_grid(6, 1), medium(5.0, 1.0, 0.99, 4), lights(), vec![cam.clone()])),
             ("g = -0.99", scene(6, noise_grid(6, 2), medium(5.0, 1.0, -0.99, 4), lights(), vec![cam.clone()])),
@@ -634,8 +705,28 @@ mod tests {
         }
         let s = crate::scene::rig::paper_scene(g, 64);
         let tracer = Tracer::new(&s, &opts(1, 0, 1, 3)).unwrap();
-        let hit = s.cameras.iter().map(|c| (0..c.pixels()).filter(|&i| intersect_box(&c.ray((i % c.width) as f64 + 0.5, (i / c.width) as f64 + 0.5), &tracer.lo, &tracer.hi).is_some()).count()).sum::<usize>();
-        eprintln!("{} cameras, {} lights; {hit} of {} pixel centres see the occupied box", s.cameras.len(), s.lights.len(), 5 * 64 * 64);
+        let hit = s
+            .cameras
+            .iter()
+            .map(|c| {
+                (0..c.pixels())
+                    .filter(|&i| {
+                        intersect_box(
+                            &c.ray((i % c.width) as f64 + 0.5, (i / c.width) as f64 + 0.5),
+                            &tracer.lo,
+                            &tracer.hi,
+                        )
+                        .is_some()
+                    })
+                    .count()
+            })
+            .sum::<usize>();
+        eprintln!(
+            "{} cameras, {} lights; {hit} of {} pixel centres see the occupied box",
+            s.cameras.len(),
+            s.lights.len(),
+            5 * 64 * 64
+        );
         for (order, spp) in [(1, 64), (3, 64)] {
             let t = std::time::Instant::now();
             let r = render_path(&s, &opts(spp, 0, 1, order));

@@ -134,7 +134,14 @@ impl SplatGeometry {
     /// For each camera position, the in-scattered radiance per unit length
     /// `albedo * sum_p p_HG * power * K` towards that camera, on the nodes.
     /// Deterministic: every node sums its photons in photon order.
-    pub fn estimate(&self, photons: &[Photon], kernel: &Kernel, cameras: &[Vec3], albedo: f64, g: f64) -> Vec<Grid<f64>> {
+    pub fn estimate(
+        &self,
+        photons: &[Photon],
+        kernel: &Kernel,
+        cameras: &[Vec3],
+        albedo: f64,
+        g: f64,
+    ) -> Vec<Grid<f64>> {
         let [nz, ny, nx] = self.nodes.shape;
         let plane = ny * nx;
         let n_slabs = nz.div_ceil(SLAB);

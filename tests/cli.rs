@@ -1,0 +1,194 @@
+//! The command line: outputs and their names, and a one-line error naming
+//! the field (non-zero exit, no panic) for every kind of bad input.
+
+use dualphoton::io::npy;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dualphoton-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn dualphoton(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dualphoton")).args(args).output().unwrap()
+}
+
+/// A small valid scene: an 8^3 blob, one light, two cameras of 8x6 pixels.
+fn valid_scene() -> Value {
+    json!({
+        "volume": {"bbox_min": [-0.5, -0.5, -0.5], "bbox_max": [0.5, 0.5, 0.5], "density": "density.npy",
+                   "sigma_t_scale": 20.0, "albedo": 0.9, "g": 0.5, "max_order": 2},
+        "lights": [{"position": [1.0, 0.5, 2.0], "intensity": 50.0}],
+        "cameras": [
+            {"position": [0.0, 0.0, 2.5], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y_deg": 40.0, "width": 8, "height": 6},
+            {"position": [2.5, 0.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov_y_deg": 40.0, "width": 8, "height": 6}
+        ],
+        "render": {"photons": 2000, "path_spp": 4}
+    })
+}
+
+fn blob(n: usize) -> Vec<f64> {
+    let mut v = vec![0.0; n * n * n];
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let c = |a: usize| (a as f64 + 0.5) / n as f64 - 0.5;
+                let r2 = c(i).powi(2) + c(j).powi(2) + c(k).powi(2);
+                v[(k * n + j) * n + i] = (0.3 - r2).max(0.0);
+            }
+        }
+    }
+    v
+}
+
+/// Writes `scene` and a density into `dir`; returns the scene path.
+fn write_scene(dir: &Path, scene: &Value, density: &[f64], shape: &[usize]) -> PathBuf {
+    npy::write_f32(&dir.join("density.npy"), shape, density).unwrap();
+    let path = dir.join("scene.json");
+    std::fs::write(&path, serde_json::to_string_pretty(scene).unwrap()).unwrap();
+    path
+}
+
+fn expect_error(out: &Output, field: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure for {field}, got success");
+    assert!(!stderr.contains("panicked"), "panic instead of an error: {stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "error must be one line: {stderr}");
+    assert!(stderr.starts_with("error: ") && stderr.contains(field), "error for {field} does not name it: {stderr}");
+}
+
+fn render_error(name: &str, scene: Value, density: Vec<f64>, shape: &[usize], field: &str) {
+    let dir = temp_dir(name);
+    let path = write_scene(&dir, &scene, &density, shape);
+    let out = dualphoton(&["render", "--scene", path.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+    expect_error(&out, field);
+}
+
+#[test]
+fn render_writes_one_npy_and_png_per_camera() {
+    let dir = temp_dir("ok");
+    let path = write_scene(&dir, &valid_scene(), &blob(8), &[8, 8, 8]);
+    for method in ["photon", "path"] {
+        let out_dir = dir.join(method);
+        let out = dualphoton(&[
+            "render",
+            "--scene",
+            path.to_str().unwrap(),
+            "--out",
+            out_dir.to_str().unwrap(),
+            "--method",
+            method,
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        for cam in ["cam0", "cam1"] {
+            let image = npy::read(&out_dir.join(format!("{cam}.npy")), "test").unwrap();
+            assert_eq!(image.shape, vec![6, 8]);
+            assert_eq!(image.dtype, "<f4");
+            assert!(image.data.iter().all(|v| v.is_finite() && *v >= 0.0) && image.data.iter().any(|v| *v > 0.0));
+            assert!(out_dir.join(format!("{cam}.png")).exists());
+            assert_eq!(out_dir.join(format!("{cam}_stderr.npy")).exists(), method == "path");
+        }
+        assert!(!out_dir.join("cam2.npy").exists());
+    }
+}
+
+#[test]
+fn bad_files_are_errors() {
+    let dir = temp_dir("files");
+    let out =
+        dualphoton(&["render", "--scene", dir.join("missing.json").to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    expect_error(&out, "scene");
+    std::fs::write(dir.join("bad.json"), "{ not json").unwrap();
+    let out =
+        dualphoton(&["render", "--scene", dir.join("bad.json").to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    expect_error(&out, "scene");
+    // Missing density file.
+    std::fs::write(dir.join("scene.json"), valid_scene().to_string()).unwrap();
+    let out =
+        dualphoton(&["render", "--scene", dir.join("scene.json").to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    expect_error(&out, "volume.density");
+    // Not a .npy file.
+    std::fs::write(dir.join("density.npy"), "hello").unwrap();
+    let out =
+        dualphoton(&["render", "--scene", dir.join("scene.json").to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    expect_error(&out, "volume.density");
+    // Wrong dtype (uint8).
+    npy::write_u8(&dir.join("density.npy"), &[2, 2, 2], &[1; 8]).unwrap();
+    let out =
+        dualphoton(&["render", "--scene", dir.join("scene.json").to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    expect_error(&out, "volume.density");
+}
+
+#[test]
+fn bad_density_values_and_shapes_are_errors() {
+    render_error("shape2d", valid_scene(), vec![0.1; 64], &[8, 8], "volume.density");
+    render_error("shape0", valid_scene(), vec![], &[0, 8, 8], "volume.density");
+    for (name, bad) in [("nan", f64::NAN), ("inf", f64::INFINITY), ("neg", -0.5)] {
+        let mut d = blob(8);
+        d[100] = bad;
+        render_error(name, valid_scene(), d, &[8, 8, 8], "volume.density");
+    }
+}
+
+#[test]
+fn bad_fields_are_errors() {
+    let cases: Vec<(&str, Box<dyn Fn(&mut Value)>, &str)> = vec![
+        ("g1", Box::new(|s| s["volume"]["g"] = json!(1.0)), "volume.g"),
+        ("gm1", Box::new(|s| s["volume"]["g"] = json!(-1.5)), "volume.g"),
+        ("albedo", Box::new(|s| s["volume"]["albedo"] = json!(1.2)), "volume.albedo"),
+        ("albedo_neg", Box::new(|s| s["volume"]["albedo"] = json!(-0.1)), "volume.albedo"),
+        ("order0", Box::new(|s| s["volume"]["max_order"] = json!(0)), "volume.max_order"),
+        ("scale", Box::new(|s| s["volume"]["sigma_t_scale"] = json!(-1.0)), "volume.sigma_t_scale"),
+        ("bbox", Box::new(|s| s["volume"]["bbox_max"] = json!([0.5, -0.5, 0.5])), "volume.bbox_max"),
+        ("intensity", Box::new(|s| s["lights"][0]["intensity"] = json!(-3.0)), "lights[0].intensity"),
+        ("width0", Box::new(|s| s["cameras"][1]["width"] = json!(0)), "cameras[1]"),
+        ("height0", Box::new(|s| s["cameras"][0]["height"] = json!(0)), "cameras[0]"),
+        ("nothing", Box::new(|s| s["cameras"][0]["look_at"] = json!([0.0, 0.0, 5.0])), "cameras[0]"),
+        ("fov", Box::new(|s| s["cameras"][0]["fov_y_deg"] = json!(180.0)), "cameras[0].fov_y_deg"),
+        ("up", Box::new(|s| s["cameras"][0]["up"] = json!([0.0, 0.0, 1.0])), "cameras[0].up"),
+        ("nocam", Box::new(|s| s["cameras"] = json!([])), "cameras"),
+        ("typo", Box::new(|s| s["lights"][0]["intesity"] = json!(3.0)), "intesity"),
+        ("missing", Box::new(|s| s["volume"].as_object_mut().unwrap().remove("g").map(|_| ()).unwrap()), "`g`"),
+        ("radius", Box::new(|s| s["render"]["kernel_radius"] = json!(0.0)), "render.kernel_radius"),
+    ];
+    for (name, mutate, field) in cases {
+        let mut scene = valid_scene();
+        mutate(&mut scene);
+        render_error(name, scene, blob(8), &[8, 8, 8], field);
+    }
+}
+
+#[test]
+fn zero_density_renders_black_not_nan() {
+    let dir = temp_dir("zero");
+    let path = write_scene(&dir, &valid_scene(), &[0.0; 512], &[8, 8, 8]);
+    let out = dualphoton(&["render", "--scene", path.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let image = npy::read(&dir.join("out/cam0.npy"), "test").unwrap();
+    assert!(image.data.iter().all(|v| *v == 0.0));
+}
+
+#[test]
+fn scene_preset_writes_the_paper_rig() {
+    let dir = temp_dir("preset");
+    let out = dualphoton(&["scene", "--preset", "paper", "--res", "16", "--seed", "3", "--out", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let scene = dualphoton::scene::file::load(&dir.join("scene.json")).unwrap();
+    assert_eq!(scene.cameras.len(), 5);
+    assert_eq!(scene.lights.len(), 3);
+    assert_eq!(scene.density.shape, [16, 16, 16]);
+    let bad = dualphoton(&["scene", "--preset", "paper", "--res", "0", "--out", dir.to_str().unwrap()]);
+    expect_error(&bad, "--res");
+    let bad = dualphoton(&[
+        "scene",
+        "--from-scalarflow",
+        dir.join("nope.npz").to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(!bad.status.success());
+}
