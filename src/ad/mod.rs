@@ -6,6 +6,9 @@
 //! (DESIGN.md §3, detached sampling). `f64` implements `Real` here; the dual
 //! and reverse-mode types implement it in their own modules.
 
+pub mod dual;
+pub mod tape;
+
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub};
 
 /// A scalar that may carry derivatives. Narrow on purpose: only what the
@@ -39,6 +42,16 @@ pub trait Real:
     /// True if the value and every derivative are exactly zero, so that
     /// work multiplied by it can be left out without changing any result.
     fn is_exact_zero(&self) -> bool;
+    /// `sum_c values[c] * weights[c]`: a trilinear lookup. Types may record
+    /// it as one operation (the tape does: one node with eight parents).
+    #[inline]
+    fn weighted_sum8(values: [Self; 8], weights: [f64; 8]) -> Self {
+        let mut s = values[0] * weights[0];
+        for c in 1..8 {
+            s += values[c] * weights[c];
+        }
+        s
+    }
     /// `(1 - e^{-self * h}) / self`: the integral of `e^{-self t}` over
     /// `t in [0, h]`. Finite for `self = 0` (value `h`) and for huge `self`.
     fn one_minus_exp_over(self, h: f64) -> Self {

@@ -1,4 +1,6 @@
-//! Files: `.npy` arrays, PNG previews.
+//! Files: `.npy` arrays, PNG previews, SVG plots.
 
+pub mod manifest;
 pub mod npy;
+pub mod plot;
 pub mod png;

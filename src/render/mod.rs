@@ -13,3 +13,4 @@ pub mod photons;
 pub mod splat;
 
 pub use photon::{render_photon, PhotonRender};
+pub mod metrics;

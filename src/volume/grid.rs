@@ -143,14 +143,18 @@ impl<R: Real> Grid<R> {
         // Weights in f64 first: 8 products of R by f64, the cheapest form for duals.
         let (gx, gy, gz) = (1.0 - f[0], 1.0 - f[1], 1.0 - f[2]);
         let (w00, w10, w01, w11) = (gy * gz, f[1] * gz, gy * f[2], f[1] * f[2]);
-        d[base] * (gx * w00)
-            + d[base + sx] * (f[0] * w00)
-            + d[base + sy] * (gx * w10)
-            + d[base + sy + sx] * (f[0] * w10)
-            + d[base + sz] * (gx * w01)
-            + d[base + sz + sx] * (f[0] * w01)
-            + d[base + sz + sy] * (gx * w11)
-            + d[base + sz + sy + sx] * (f[0] * w11)
+        let values = [
+            d[base],
+            d[base + sx],
+            d[base + sy],
+            d[base + sy + sx],
+            d[base + sz],
+            d[base + sz + sx],
+            d[base + sz + sy],
+            d[base + sz + sy + sx],
+        ];
+        let weights = [gx * w00, f[0] * w00, gx * w10, f[0] * w10, gx * w01, f[0] * w01, gx * w11, f[0] * w11];
+        R::weighted_sum8(values, weights)
     }
 }
 

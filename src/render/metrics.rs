@@ -1,0 +1,55 @@
+//! Image error metrics (issue 2): relative RMSE over block means, with the
+//! reference's own Monte Carlo noise subtracted.
+
+use super::Image;
+
+/// Sums over all camera pairs: (sum of squared block differences, sum of
+/// reference block noise variances, sum of squared reference blocks, blocks).
+fn block_sums(ours: &[Image], reference: &[Image], std_err: Option<&[Image]>, b: usize) -> (f64, f64, f64, usize) {
+    let (mut diff2, mut noise, mut ref2, mut count) = (0.0, 0.0, 0.0, 0);
+    for (c, (o, r)) in ours.iter().zip(reference).enumerate() {
+        let (ob, rb) = (o.block_means(b), r.block_means(b));
+        if let Some(se) = std_err {
+            let var =
+                Image { width: se[c].width, height: se[c].height, data: se[c].data.iter().map(|s| s * s).collect() };
+            // Variance of a block mean of independent pixels: sum of variances / (b^2)^2.
+            noise += var.block_means(b).iter().sum::<f64>() / (b * b) as f64;
+        }
+        diff2 += ob.iter().zip(&rb).map(|(x, y)| (x - y).powi(2)).sum::<f64>();
+        ref2 += rb.iter().map(|y| y * y).sum::<f64>();
+        count += rb.len();
+    }
+    (diff2, noise, ref2, count)
+}
+
+/// `sqrt(mean((ours_b - ref_b)^2) - mean(var_b)) / sqrt(mean(ref_b^2))` over
+/// `b x b` block means of all cameras, where `var_b` is the reference's
+/// noise variance of each block mean (from its standard-error images; none
+/// subtracted if `std_err` is `None`). 0 if the difference is below the noise.
+pub fn block_rel_rmse(ours: &[Image], reference: &[Image], std_err: Option<&[Image]>, b: usize) -> f64 {
+    let (diff2, noise, ref2, n) = block_sums(ours, reference, std_err, b);
+    if ref2 == 0.0 || n == 0 {
+        return if diff2 == 0.0 { 0.0 } else { f64::INFINITY };
+    }
+    ((diff2 - noise).max(0.0) / n as f64).sqrt() / (ref2 / n as f64).sqrt()
+}
+
+/// The reference's own noise on the same scale: `sqrt(mean(var_b)) / sqrt(mean(ref_b^2))`.
+pub fn reference_noise(reference: &[Image], std_err: &[Image], b: usize) -> f64 {
+    let (_, noise, ref2, n) = block_sums(reference, reference, Some(std_err), b);
+    if ref2 == 0.0 {
+        return 0.0;
+    }
+    (noise / n as f64).sqrt() / (ref2 / n as f64).sqrt()
+}
+
+/// Relative difference of the summed radiance of all images.
+pub fn rel_mean_diff(ours: &[Image], reference: &[Image]) -> f64 {
+    let sum = |v: &[Image]| v.iter().map(|i| i.data.iter().sum::<f64>()).sum::<f64>();
+    let r = sum(reference);
+    if r == 0.0 {
+        0.0
+    } else {
+        (sum(ours) - r) / r
+    }
+}
