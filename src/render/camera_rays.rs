@@ -17,6 +17,9 @@ use rayon::prelude::*;
 pub struct CameraRays<'a, R: Real> {
     /// The density (weights and derivatives).
     pub density: &'a Grid<R>,
+    /// Frozen mode: the density the sampling decisions use. `None`: the
+    /// primal of `density` (detached sampling, DESIGN.md §3).
+    pub sampling: Option<&'a Grid<f64>>,
     /// Optical properties.
     pub medium: &'a Medium,
     /// Point lights (those of zero intensity are skipped).
@@ -40,17 +43,20 @@ impl<R: Real> CameraRays<'_, R> {
         (0..camera.pixels())
             .into_par_iter()
             .with_min_len(16)
-            .map(|p| {
-                let mut rng = Rng::new(self.seed, Purpose::Pixel, first_pixel + p as u64);
-                let (x, y) = ((p % camera.width) as f64, (p / camera.width) as f64);
-                let mut sum = R::cst(0.0);
-                for _ in 0..self.spp {
-                    let ray = camera.ray(x + rng.uniform(), y + rng.uniform());
-                    sum += self.radiance(&ray, rng.uniform(), rng.uniform(), multiple);
-                }
-                sum * (1.0 / self.spp as f64)
-            })
+            .map(|p| self.pixel(camera, first_pixel, p, multiple))
             .collect()
+    }
+
+    /// Pixel `p` (row-major) of `camera`: the mean of `spp` jittered rays.
+    pub fn pixel(&self, camera: &Camera, first_pixel: u64, p: usize, multiple: Option<&Grid<R>>) -> R {
+        let mut rng = Rng::new(self.seed, Purpose::Pixel, first_pixel + p as u64);
+        let (x, y) = ((p % camera.width) as f64, (p / camera.width) as f64);
+        let mut sum = R::cst(0.0);
+        for _ in 0..self.spp {
+            let ray = camera.ray(x + rng.uniform(), y + rng.uniform());
+            sum += self.radiance(&ray, rng.uniform(), rng.uniform(), multiple);
+        }
+        sum * (1.0 / self.spp as f64)
     }
 
     /// Radiance arriving along `-ray.dir` at the ray's origin.
@@ -58,11 +64,13 @@ impl<R: Real> CameraRays<'_, R> {
         let scale = self.medium.sigma_t_scale;
         let w_out = -ray.dir;
         let mut transmittance = R::cst(1.0);
+        let mut transmittance_detached = 1.0;
         let mut radiance = R::cst(0.0);
         self.marcher.steps(ray, f64::INFINITY, jitter, |s| {
             // The step's extinction, constant over the step, read at the jittered sample.
-            let sigma_t = self.density.at(&ray.at(s.sample)) * scale;
-            let sigma = sigma_t.re();
+            let xs = ray.at(s.sample);
+            let sigma_t = self.density.at(&xs) * scale;
+            let sigma = self.sampling.map_or_else(|| sigma_t.re(), |g| g.at(&xs) * scale);
             // Light is gathered at a second point, drawn from q(u) = e^{-sigma u} / z on
             // [0, h] with the same uniform (detached: the sampling density is a plain value).
             // Dividing by q gives the weight z e^{-(sigma_t - sigma) u}, which is
@@ -95,7 +103,8 @@ impl<R: Real> CameraRays<'_, R> {
                 radiance += within * sigma_t * single * self.medium.albedo;
             }
             transmittance *= (-(sigma_t * s.h)).exp();
-            transmittance.re() > T_MIN
+            transmittance_detached *= (-(sigma * s.h)).exp();
+            transmittance_detached > T_MIN
         });
         radiance
     }

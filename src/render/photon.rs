@@ -69,6 +69,7 @@ pub fn render_photon(scene: &Scene) -> PhotonRender {
     let t = Instant::now();
     let rays = CameraRays {
         density,
+        sampling: None,
         medium: &scene.medium,
         lights: &scene.lights,
         marcher: &marcher,

@@ -6,6 +6,7 @@
 //! arrives there (the 1st collision is single scattering, computed directly).
 
 use super::march::{Marcher, Step};
+use crate::ad::Real;
 use crate::math::{cone_solid_angle, sample_cone, Ray, Vec3};
 use crate::rng::{Purpose, Rng};
 use crate::scene::{Light, Medium};
@@ -78,11 +79,21 @@ pub struct Tracer<'a> {
 }
 
 impl Tracer<'_> {
+    /// Power sent towards the medium by all lights (W).
+    pub fn total_power(&self) -> f64 {
+        self.emitters.iter().map(|e| e.power).sum()
+    }
+
+    /// True if this scene needs no photons (single scattering only, albedo
+    /// 0, nothing lit, or no photons asked for).
+    fn idle(&self, count: u64) -> bool {
+        self.medium.max_order < 2 || count == 0 || self.total_power() <= 0.0 || self.medium.albedo == 0.0
+    }
+
     /// Traces `count` photons with streams of `seed`; stored photons in
     /// path order, whatever the number of threads. Empty at max_order 1.
     pub fn trace(&self, count: u64, seed: u64) -> Vec<Photon> {
-        let total: f64 = self.emitters.iter().map(|e| e.power).sum();
-        if self.medium.max_order < 2 || count == 0 || total <= 0.0 || self.medium.albedo == 0.0 {
+        if self.idle(count) {
             return vec![];
         }
         const CHUNK: u64 = 1024;
@@ -93,12 +104,31 @@ impl Tracer<'_> {
                 let mut out = Vec::with_capacity(range.clone().count() * (self.medium.max_order as usize - 1));
                 let mut steps = Vec::new();
                 for i in range {
-                    self.trace_one(i, count, total, seed, &mut steps, &mut out);
+                    self.trace_one::<f64>(i, count, seed, &mut steps, None, &mut out, &mut vec![]);
                 }
                 out
             })
             .collect();
         chunks.into_iter().flatten().collect()
+    }
+
+    /// Replays path `i` of `trace(count, seed)` with its decisions unchanged
+    /// and appends the powers of its stored photons, in the same order, as
+    /// functions of `density` (the frozen estimator, DESIGN.md §3). Each
+    /// free flight's weight gets the factor `sigma_t T / (sigma_t T)_detached`
+    /// (exactly 1 in the primal), where the derivatives live.
+    pub fn replay<R: Real>(
+        &self,
+        i: u64,
+        count: u64,
+        seed: u64,
+        density: &Grid<R>,
+        steps: &mut Vec<(Step, f64)>,
+        powers: &mut Vec<R>,
+    ) {
+        if !self.idle(count) {
+            self.trace_one(i, count, seed, steps, Some(density), &mut vec![], powers);
+        }
     }
 
     /// The emitter of photon `i` of `count`: stratified over the lights' power.
@@ -114,45 +144,71 @@ impl Tracer<'_> {
         self.emitters.iter().rev().find(|e| e.power > 0.0).unwrap()
     }
 
-    fn trace_one(
+    #[allow(clippy::too_many_arguments)]
+    fn trace_one<R: Real>(
         &self,
         i: u64,
         count: u64,
-        total: f64,
         seed: u64,
         steps: &mut Vec<(Step, f64)>,
+        weights: Option<&Grid<R>>,
         out: &mut Vec<Photon>,
+        powers: &mut Vec<R>,
     ) {
+        let total = self.total_power();
         let mut rng = Rng::new(seed, Purpose::Photon, i);
         let e = self.emitter_of(i, count, total);
         let mut ray = Ray { origin: e.position, dir: sample_cone(&e.axis, e.cos_max, rng.uniform(), rng.uniform()) };
         let mut power = total / count as f64;
+        let mut power_r = R::cst(power);
         for order in 1..=self.medium.max_order {
-            let Some((t, weight)) = self.forced_collision(&ray, &mut rng, steps) else {
-                return;
-            };
+            let Some((t, weight, m)) = self.forced_collision(&ray, &mut rng, steps) else { return };
             power *= weight;
+            if let Some(g) = weights {
+                power_r = power_r * weight * self.flight_ratio(g, &ray, steps, m, t);
+            }
             let pos = ray.at(t);
             if order >= 2 {
                 out.push(Photon { pos, dir: ray.dir, power, path: i as u32, order: order as u8 });
+                powers.push(power_r);
             }
             if order == self.medium.max_order {
                 return;
             }
             power *= self.medium.albedo;
+            power_r = power_r * self.medium.albedo;
             ray = Ray { origin: pos, dir: hg_sample(self.medium.g, &ray.dir, rng.uniform(), rng.uniform()) };
         }
     }
 
+    /// `sigma_t(x_t) e^{-tau(t)}` of `density` over the same of the sampling
+    /// density, for a collision at `t` in step `m`; the primal is exactly 1.
+    fn flight_ratio<R: Real>(&self, density: &Grid<R>, ray: &Ray, steps: &[(Step, f64)], m: usize, t: f64) -> R {
+        let scale = self.medium.sigma_t_scale;
+        let mut depth = R::cst(0.0);
+        let mut depth_detached = 0.0;
+        for (s, sigma) in &steps[..m] {
+            depth += density.at(&ray.at(s.sample)) * scale * s.h;
+            depth_detached += sigma * s.h;
+        }
+        let (s, sigma) = steps[m];
+        let sigma_r = density.at(&ray.at(s.sample)) * scale;
+        let dt = t - s.start;
+        depth += sigma_r * dt;
+        depth_detached += sigma * dt;
+        sigma_r / sigma * (-(depth - depth_detached)).exp()
+    }
+
     /// A collision distance along `ray` drawn from `sigma_t T / (1 - T_all)`
-    /// over the ray's part in the medium, and the weight `1 - T_all`;
-    /// `None` if the ray meets no medium.
-    fn forced_collision(&self, ray: &Ray, rng: &mut Rng, steps: &mut Vec<(Step, f64)>) -> Option<(f64, f64)> {
+    /// over the ray's part in the medium, the weight `1 - T_all` and the
+    /// collision's step; `None` if the ray meets no medium. `steps` keeps
+    /// the marched steps with their extinction.
+    fn forced_collision(&self, ray: &Ray, rng: &mut Rng, steps: &mut Vec<(Step, f64)>) -> Option<(f64, f64, usize)> {
         let scale = self.medium.sigma_t_scale;
         steps.clear();
         let mut depth = 0.0;
         self.marcher.steps(ray, f64::INFINITY, rng.uniform(), |s| {
-            let sigma = scale * self.density.at(&ray.at(s.sample));
+            let sigma = self.density.at(&ray.at(s.sample)) * scale;
             depth += sigma * s.h;
             steps.push((s, sigma));
             depth < 800.0
@@ -164,16 +220,16 @@ impl Tracer<'_> {
         let weight = -(-depth).exp_m1();
         let target = -(-rng.uniform() * weight).ln_1p();
         let mut before = 0.0;
-        for (s, sigma) in steps.iter() {
+        for (m, (s, sigma)) in steps.iter().enumerate() {
             let after = before + sigma * s.h;
             if after >= target && *sigma > 0.0 {
                 let t = s.start + ((target - before) / sigma).clamp(0.0, s.h);
-                return Some((t, weight));
+                return Some((t, weight, m));
             }
             before = after;
         }
-        // Rounding left the target just past the end: collide in the last non-empty step.
-        let (s, _) = steps.iter().rev().find(|(_, sigma)| *sigma > 0.0)?;
-        Some((s.start + s.h, weight))
+        // Rounding left the target just past the end: collide at the end of the last non-empty step.
+        let m = steps.iter().rposition(|(_, sigma)| *sigma > 0.0)?;
+        Some((steps[m].0.start + steps[m].0.h, weight, m))
     }
 }

@@ -14,6 +14,7 @@
 //! that a photon would touch more than about 5^3 nodes.
 
 use super::photons::Photon;
+use crate::ad::Real;
 use crate::math::Vec3;
 use crate::volume::phase::hg_eval;
 use crate::volume::Grid;
@@ -142,6 +143,20 @@ impl SplatGeometry {
         albedo: f64,
         g: f64,
     ) -> Vec<Grid<f64>> {
+        self.estimate_with(photons, |p| photons[p].power, kernel, cameras, albedo, g)
+    }
+
+    /// [`estimate`](Self::estimate) with photon `p`'s power given by `power(p)`
+    /// (a function of the density in the frozen estimator).
+    pub fn estimate_with<R: Real>(
+        &self,
+        photons: &[Photon],
+        power: impl Fn(usize) -> R + Sync,
+        kernel: &Kernel,
+        cameras: &[Vec3],
+        albedo: f64,
+        g: f64,
+    ) -> Vec<Grid<R>> {
         let [nz, ny, nx] = self.nodes.shape;
         let plane = ny * nx;
         let n_slabs = nz.div_ceil(SLAB);
@@ -157,12 +172,12 @@ impl SplatGeometry {
                 slab.push(p as u32);
             }
         }
-        let slabs: Vec<Vec<f64>> = (0..cameras.len() * n_slabs)
+        let slabs: Vec<Vec<R>> = (0..cameras.len() * n_slabs)
             .into_par_iter()
             .map(|task| {
                 let (cam, s) = (task / n_slabs, task % n_slabs);
                 let first = s * SLAB * plane;
-                let mut slab = vec![0.0; ((s + 1) * SLAB).min(nz) * plane - first];
+                let mut slab = vec![R::cst(0.0); ((s + 1) * SLAB).min(nz) * plane - first];
                 for &p in &reach[s] {
                     let photon = &photons[p as usize];
                     let to_cam = cameras[cam] - photon.pos;
@@ -170,11 +185,11 @@ impl SplatGeometry {
                     if dist == 0.0 {
                         continue;
                     }
-                    let value = albedo * hg_eval(g, photon.dir.dot(&(to_cam / dist))) * photon.power;
+                    let value = power(p as usize) * (albedo * hg_eval(g, photon.dir.dot(&(to_cam / dist))));
                     let range = kernel.start[p as usize]..kernel.start[p as usize + 1];
                     for (&n, &w) in kernel.nodes[range.clone()].iter().zip(&kernel.weights[range]) {
                         if let Some(v) = (n as usize).checked_sub(first).and_then(|i| slab.get_mut(i)) {
-                            *v += w as f64 * value;
+                            *v += value * w as f64;
                         }
                     }
                 }
@@ -184,7 +199,7 @@ impl SplatGeometry {
         slabs
             .chunks(n_slabs)
             .map(|cam_slabs| {
-                let data: Vec<f64> = cam_slabs.iter().flatten().copied().collect();
+                let data: Vec<R> = cam_slabs.iter().flatten().copied().collect();
                 Grid::new(self.nodes.lo, self.nodes.hi, self.nodes.shape, data)
             })
             .collect()
