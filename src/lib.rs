@@ -14,6 +14,7 @@
 
 pub mod ad;
 pub mod error;
+pub mod grad;
 pub mod io;
 pub mod math;
 pub mod render;

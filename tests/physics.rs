@@ -107,7 +107,7 @@ fn transmittance_through_homogeneous_slab_is_exponential() {
     let rho = 0.37;
     let grid = common::homogeneous(16, rho);
     let majorant = Majorant::build(&grid, 4);
-    let marcher = Marcher::new(&grid, &majorant, 0.5 / 16.0);
+    let marcher = Marcher::new(&grid, majorant, 0.5 / 16.0);
     for (from, to) in [
         (Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.0, 0.0, -2.0)),
         (Vec3::new(-1.0, 0.1, 0.2), Vec3::new(0.2, -0.1, 0.0)),

@@ -1,1 +1,210 @@
-fn main() {}
+//! The `dualphoton` command line: `render` and `scene` (see `--help`).
+
+use clap::{Parser, Subcommand, ValueEnum};
+use dualphoton::error::{Error, Result};
+use dualphoton::io::{npy, png};
+use dualphoton::render::path::{render_path_with_progress, PathOptions};
+use dualphoton::render::{render_photon, Image};
+use dualphoton::scene::{file, rig, Scene};
+use dualphoton::volume::{plume, scalarflow};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "dualphoton", version, about = "Differentiable photon mapping of smoke and fog")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Method {
+    /// Single scattering by ray marching + photon mapping for orders 2..max_order.
+    Photon,
+    /// Unbiased volumetric path tracer (the reference; slow). Also writes camN_stderr.npy.
+    Path,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Preset {
+    /// The paper's rig (5 cameras, 3 lights, g 0.9, albedo 0.9) around a smoke plume.
+    Paper,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render every camera of a scene to DIR/cam0.npy, DIR/cam0.png, DIR/cam1.npy, ...
+    Render {
+        /// Scene file (JSON, DESIGN.md §1).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+        /// Rendering method.
+        #[arg(long, value_enum, default_value = "photon")]
+        method: Method,
+        /// Seed of every random stream (default: the scene's render.seed, else 0).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Photons emitted (default: render.photons, else 300000).
+        #[arg(long)]
+        photons: Option<u64>,
+        /// Photon kernel radius in world units (default: render.kernel_radius, else 2 voxels).
+        #[arg(long)]
+        radius: Option<f64>,
+        /// Ray-marching step in world units (default: render.step, else half a voxel).
+        #[arg(long)]
+        step: Option<f64>,
+        /// Samples per pixel of the photon renderer (default: render.spp, else 1).
+        #[arg(long)]
+        spp: Option<u32>,
+        /// Samples per pixel of the path tracer (default: render.path_spp, else 256).
+        #[arg(long)]
+        path_spp: Option<u32>,
+        /// Fixed PNG white point (radiance mapped to full white); default per image.
+        #[arg(long)]
+        white: Option<f64>,
+    },
+    /// Write a built-in scene (scene.json + density.npy) to DIR.
+    Scene {
+        /// Which scene.
+        #[arg(long, value_enum, default_value = "paper")]
+        preset: Preset,
+        /// Density grid resolution (res^3) and image size (res x res).
+        #[arg(long, default_value_t = 64)]
+        res: usize,
+        /// Seed of the plume.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Use this ScalarFlow frame (.npz, key `data`, shape (z, y, x, 1)) instead of the built-in plume.
+        #[arg(long)]
+        from_scalarflow: Option<PathBuf>,
+        /// Output directory (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Render { scene, out, method, seed, threads, photons, radius, step, spp, path_spp, white } => {
+            set_threads(threads)?;
+            let mut scene = file::load(&scene)?;
+            let r = &mut scene.render;
+            r.seed = seed.unwrap_or(r.seed);
+            r.photons = photons.unwrap_or(r.photons);
+            r.kernel_radius = radius.or(r.kernel_radius);
+            r.step = step.or(r.step);
+            r.spp = spp.unwrap_or(r.spp);
+            r.path_spp = path_spp.unwrap_or(r.path_spp);
+            file::validate(&scene)?;
+            if let Some(w) = white {
+                if !(w.is_finite() && w > 0.0) {
+                    return Err(Error(format!("--white: {w} must be finite and > 0")));
+                }
+            }
+            match method {
+                Method::Photon => render_photon_cmd(&scene, &out, white),
+                Method::Path => render_path_cmd(&scene, &out, white),
+            }
+        }
+        Command::Scene { preset: Preset::Paper, res, seed, from_scalarflow, out } => {
+            if res == 0 || res > 512 {
+                return Err(Error(format!("--res: {res} must be in 1..=512")));
+            }
+            let density = match from_scalarflow {
+                Some(path) => scalarflow::load_scalarflow(&path, res)?,
+                None => plume::plume(res, seed),
+            };
+            let scene: Scene = rig::paper_scene(density, res);
+            file::validate(&scene)?;
+            file::save(&scene, &out, "scene")?;
+            let s = plume::plume_stats(&scene.density);
+            eprintln!(
+                "wrote {}/scene.json and density.npy: {res}^3, {} occupied voxels ({:.1} %), mean {:.4} over them, max {:.4}",
+                out.display(),
+                s.occupied,
+                100.0 * s.fraction_occupied,
+                s.mean_occupied,
+                s.max
+            );
+            Ok(())
+        }
+    }
+}
+
+fn set_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err(Error::new("--threads: must be at least 1"));
+        }
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|e| Error(format!("--threads: {e}")))?;
+    }
+    Ok(())
+}
+
+fn write_image(dir: &Path, name: &str, image: &Image, white: Option<f64>) -> Result<()> {
+    if image.data.iter().any(|v| !v.is_finite()) {
+        return Err(Error(format!("internal error: {name} has non-finite pixels; please report this scene")));
+    }
+    npy::write_f32(&dir.join(format!("{name}.npy")), &[image.height, image.width], &image.data)?;
+    png::write_preview(&dir.join(format!("{name}.png")), image.width, image.height, &image.data, white)
+}
+
+fn create_dir(out: &Path) -> Result<()> {
+    std::fs::create_dir_all(out).map_err(|e| Error(format!("--out: cannot create {}: {e}", out.display())))
+}
+
+fn render_photon_cmd(scene: &Scene, out: &Path, white: Option<f64>) -> Result<()> {
+    create_dir(out)?;
+    let r = render_photon(scene);
+    for (c, image) in r.images.iter().enumerate() {
+        write_image(out, &format!("cam{c}"), image, white)?;
+    }
+    let t = &r.timings;
+    eprintln!(
+        "photon: {} cameras, {} photons emitted, {} stored; tracing {:.3} s, gathering {:.3} s, camera rays {:.3} s, total {:.3} s",
+        r.images.len(),
+        scene.render.photons,
+        r.stored_photons,
+        t.trace,
+        t.gather,
+        t.camera,
+        t.total
+    );
+    Ok(())
+}
+
+fn render_path_cmd(scene: &Scene, out: &Path, white: Option<f64>) -> Result<()> {
+    create_dir(out)?;
+    let opts = PathOptions { spp: scene.render.path_spp, seed: scene.render.seed, max_order: None, min_order: 1 };
+    let start = std::time::Instant::now();
+    let progress = |done: usize, total: usize| {
+        let elapsed = start.elapsed().as_secs_f64();
+        let eta = if done > 0 { elapsed * (total - done) as f64 / done as f64 } else { 0.0 };
+        eprint!("\rpath: {done}/{total} pixels, {elapsed:.0} s elapsed, ETA {eta:.0} s   ");
+    };
+    let r = render_path_with_progress(scene, &opts, &progress);
+    eprintln!();
+    for (c, (image, err)) in r.radiance.iter().zip(&r.std_err).enumerate() {
+        write_image(out, &format!("cam{c}"), image, white)?;
+        npy::write_f32(&out.join(format!("cam{c}_stderr.npy")), &[err.height, err.width], &err.data)?;
+    }
+    eprintln!("path: {} samples in {:.1} s", r.samples, start.elapsed().as_secs_f64());
+    Ok(())
+}

@@ -25,7 +25,7 @@ pub struct CameraRays<'a, R: Real> {
     /// Point lights (those of zero intensity are skipped).
     pub lights: &'a [Light],
     /// Occupied-space marching.
-    pub marcher: &'a Marcher<'a>,
+    pub marcher: &'a Marcher,
     /// Jittered samples per pixel.
     pub spp: u32,
     /// Seed of the pixel streams.

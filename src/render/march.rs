@@ -24,9 +24,10 @@ pub struct Step {
 }
 
 /// What marching needs: where the medium can be non-empty and the step length.
-pub struct Marcher<'a> {
+#[derive(Clone, Debug)]
+pub struct Marcher {
     /// Bounds of the density (of the sampling density, DESIGN.md §3).
-    pub majorant: &'a Majorant,
+    pub majorant: Majorant,
     /// Box of the volume.
     pub lo: Vec3,
     /// Box of the volume.
@@ -35,9 +36,9 @@ pub struct Marcher<'a> {
     pub step: f64,
 }
 
-impl<'a> Marcher<'a> {
+impl Marcher {
     /// A marcher over `grid`'s box with blocks from `majorant`.
-    pub fn new(grid: &Grid<f64>, majorant: &'a Majorant, step: f64) -> Self {
+    pub fn new(grid: &Grid<f64>, majorant: Majorant, step: f64) -> Self {
         Marcher { majorant, lo: grid.lo, hi: grid.hi, step }
     }
 

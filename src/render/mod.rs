@@ -13,4 +13,5 @@ pub mod photons;
 pub mod splat;
 
 pub use photon::{render_photon, PhotonRender};
+pub mod frozen;
 pub mod metrics;

@@ -73,7 +73,7 @@ pub struct Tracer<'a> {
     /// Optical properties.
     pub medium: &'a Medium,
     /// Occupied-space marching.
-    pub marcher: &'a Marcher<'a>,
+    pub marcher: &'a Marcher,
     /// The lights' emission cones.
     pub emitters: &'a [Emitter],
 }

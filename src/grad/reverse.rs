@@ -1,0 +1,252 @@
+//! Reverse mode with the project's tape: `rev-full` (every pixel and every
+//! photon path) and `rev-sub` (the paper's approximate learning: a random
+//! subset of pixels and of photon paths, scaled so the estimate stays
+//! unbiased).
+//!
+//! The gradient is assembled in three sweeps, each over independent units
+//! with a tape of their own: (1) every differentiated pixel records its
+//! ray-march on the tape with the density voxels and the photon-estimate
+//! grid nodes as leaves, and is swept back with `dL/dÎ`; (2) the adjoints of
+//! the estimate's nodes become adjoints of the photon powers (the estimate is
+//! linear in them, with the frozen kernel weights); (3) every differentiated
+//! photon path is replayed on the tape and swept back from its powers.
+//! Contributions are summed per fixed chunk of units and the chunks in
+//! order, so the result does not depend on the number of threads.
+
+use super::loss::mse_residuals;
+use crate::ad::tape::{self, Var};
+use crate::render::frozen::Frozen;
+use crate::render::march::Step;
+use crate::render::Image;
+use crate::rng::{Purpose, Rng};
+use crate::volume::phase::hg_eval;
+use crate::volume::Grid;
+use rayon::prelude::*;
+
+/// Which units reverse mode differentiates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Subset {
+    /// Pixels (over all cameras) to differentiate; `None`: all (the paper: 1,000).
+    pub pixels: Option<usize>,
+    /// Photon paths to differentiate; `None`: all (the paper: 5,000 of 300,000).
+    pub paths: Option<usize>,
+    /// Seed of the subset draws.
+    pub seed: u64,
+}
+
+impl Subset {
+    /// Every pixel and every path: `rev-full`.
+    pub fn full() -> Self {
+        Subset { pixels: None, paths: None, seed: 0 }
+    }
+}
+
+/// A reverse-mode gradient and what it cost.
+#[derive(Clone, Debug)]
+pub struct Reverse {
+    /// The loss at the frozen density.
+    pub loss: f64,
+    /// `dL/drho` per voxel (C order, like the density).
+    pub grad: Vec<f64>,
+    /// Largest tape one unit needed (bytes).
+    pub peak_tape_bytes: usize,
+}
+
+/// Units per chunk: contributions are summed per chunk, then chunks in order.
+const CHUNK: usize = 32;
+
+/// Per-thread dense adjoints plus the list of touched leaves.
+struct Scratch {
+    adjoint: Vec<f64>,
+    seen: Vec<bool>,
+    touched: Vec<u32>,
+}
+
+impl Scratch {
+    fn new(leaves: usize) -> Self {
+        Scratch { adjoint: vec![0.0; leaves], seen: vec![false; leaves], touched: vec![] }
+    }
+
+    #[inline]
+    fn add(&mut self, leaf: u32, a: f64) {
+        let l = leaf as usize;
+        if !self.seen[l] {
+            self.seen[l] = true;
+            self.touched.push(leaf);
+        }
+        self.adjoint[l] += a;
+    }
+
+    /// The touched leaves and their adjoints, in first-touch order; clears.
+    fn drain(&mut self) -> Vec<(u32, f64)> {
+        let out = self.touched.iter().map(|&l| (l, self.adjoint[l as usize])).collect();
+        for &l in &self.touched {
+            self.adjoint[l as usize] = 0.0;
+            self.seen[l as usize] = false;
+        }
+        self.touched.clear();
+        out
+    }
+}
+
+/// `count` distinct indices below `n`, drawn uniformly (sorted), and `n / count`.
+fn draw_subset(n: usize, count: Option<usize>, rng: &mut Rng) -> (Vec<usize>, f64) {
+    match count {
+        Some(c) if c < n => {
+            // Floyd's algorithm: c draws, no n-sized allocation.
+            let mut chosen = std::collections::BTreeSet::new();
+            for j in n - c..n {
+                let t = rng.below(j as u64 + 1) as usize;
+                if !chosen.insert(t) {
+                    chosen.insert(j);
+                }
+            }
+            (chosen.into_iter().collect(), n as f64 / c as f64)
+        }
+        _ => ((0..n).collect(), 1.0),
+    }
+}
+
+/// Runs `unit(scratch, index)` for every index in chunks of [`CHUNK`] and
+/// adds the leaf adjoints into `total` in chunk order. Returns the peak tape size.
+fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut Scratch, usize) + Sync) -> usize {
+    let parts: Vec<(Vec<(u32, f64)>, usize)> = indices
+        .par_chunks(CHUNK)
+        .map_init(
+            || Scratch::new(leaves),
+            |scratch, chunk| {
+                let mut peak = 0;
+                for &i in chunk {
+                    tape::reset();
+                    unit(scratch, i);
+                    peak = peak.max(tape::tape_bytes());
+                    tape::reset();
+                }
+                (scratch.drain(), peak)
+            },
+        )
+        .collect();
+    let mut peak = 0;
+    for (part, p) in parts {
+        peak = peak.max(p);
+        for (l, a) in part {
+            total[l as usize] += a;
+        }
+    }
+    peak
+}
+
+/// `dL/drho` of the frozen estimator by reverse mode over `subset`.
+pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> Reverse {
+    let scene = frozen.scene;
+    let density = &scene.density;
+    let voxels = density.len();
+    let residuals = mse_residuals(&frozen.images, targets);
+    let loss: f64 = residuals
+        .iter()
+        .zip(&frozen.images)
+        .zip(targets)
+        .map(|((_, i), t)| i.data.iter().zip(&t.data).map(|(a, b)| (a - b).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / targets.iter().map(|t| t.data.len()).sum::<usize>().max(1) as f64;
+    let mut rng = Rng::new(subset.seed, Purpose::Gradient, 0);
+
+    // Leaves: voxels 0..V, then the estimate's nodes camera by camera.
+    let leaf_density = Grid::new(
+        density.lo,
+        density.hi,
+        density.shape,
+        (0..voxels).map(|v| Var::leaf(v as u32, density.data[v])).collect(),
+    );
+    let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
+    let nodes = multiple.as_ref().map_or(0, |m| m[0].len());
+    let leaf_multiple: Option<Vec<Grid<Var>>> = multiple.as_ref().map(|grids| {
+        grids
+            .iter()
+            .enumerate()
+            .map(|(c, g)| {
+                let first = voxels + c * nodes;
+                Grid::new(
+                    g.lo,
+                    g.hi,
+                    g.shape,
+                    g.data.iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect(),
+                )
+            })
+            .collect()
+    });
+    let leaves = voxels + nodes * scene.cameras.len();
+    let mut total = vec![0.0; leaves];
+
+    // (1) Pixels.
+    let sizes: Vec<usize> = scene.cameras.iter().map(|c| c.pixels()).collect();
+    let (pixels, pixel_scale) = draw_subset(sizes.iter().sum(), subset.pixels, &mut rng);
+    let rays = frozen.camera_rays(&leaf_density, None);
+    let locate = |mut i: usize| {
+        let mut c = 0;
+        while i >= sizes[c] {
+            i -= sizes[c];
+            c += 1;
+        }
+        (c, i)
+    };
+    let mut peak = sweep(&pixels, leaves, &mut total, |scratch, i| {
+        let (c, p) = locate(i);
+        let seed = residuals[c][p] * pixel_scale;
+        if seed == 0.0 {
+            return;
+        }
+        let value = rays.pixel(&scene.cameras[c], frozen.first_pixel(c), p, leaf_multiple.as_ref().map(|m| &m[c]));
+        tape::backward(&[(value, seed)], |leaf, a| scratch.add(leaf, a));
+    });
+
+    // (2) Estimate-node adjoints -> photon power adjoints.
+    let power_adjoint: Vec<f64> = match frozen.kernel() {
+        None => vec![],
+        Some((_, kernel)) => {
+            let m = &scene.medium;
+            (0..frozen.photons.len())
+                .into_par_iter()
+                .map(|p| {
+                    let photon = &frozen.photons[p];
+                    let range = kernel.start[p]..kernel.start[p + 1];
+                    let mut adj = 0.0;
+                    for (c, cam) in scene.cameras.iter().enumerate() {
+                        let to_cam = cam.position - photon.pos;
+                        let dist = to_cam.norm();
+                        if dist == 0.0 {
+                            continue;
+                        }
+                        let node_adj = &total[voxels + c * nodes..voxels + (c + 1) * nodes];
+                        let s: f64 = kernel.nodes[range.clone()]
+                            .iter()
+                            .zip(&kernel.weights[range.clone()])
+                            .map(|(&n, &w)| node_adj[n as usize] * w as f64)
+                            .sum();
+                        adj += s * m.albedo * hg_eval(m.g, photon.dir.dot(&(to_cam / dist)));
+                    }
+                    adj
+                })
+                .collect()
+        }
+    };
+
+    // (3) Photon paths.
+    if !power_adjoint.is_empty() {
+        let (paths, path_scale) = draw_subset(frozen.paths(), subset.paths, &mut rng);
+        let paths: Vec<usize> = paths.into_iter().filter(|&i| !frozen.path_photons(i).is_empty()).collect();
+        let tracer = frozen.tracer();
+        let (count, seed) = (scene.render.photons, scene.render.seed);
+        let p2 = sweep(&paths, leaves, &mut total, |scratch, i| {
+            let mut steps: Vec<(Step, f64)> = vec![];
+            let mut powers: Vec<Var> = vec![];
+            tracer.replay(i as u64, count, seed, &leaf_density, &mut steps, &mut powers);
+            let seeds: Vec<(Var, f64)> =
+                powers.iter().zip(frozen.path_photons(i)).map(|(&v, p)| (v, power_adjoint[p] * path_scale)).collect();
+            tape::backward(&seeds, |leaf, a| scratch.add(leaf, a));
+        });
+        peak = peak.max(p2);
+    }
+    total.truncate(voxels);
+    Reverse { loss, grad: total, peak_tape_bytes: peak }
+}

@@ -1,0 +1,221 @@
+//! The photon-mapping estimator with every sampling decision made once and
+//! kept ("frozen", DESIGN.md §3): marching steps, photon paths and their
+//! kernel weights, pixel jitter. What is left is a smooth function of the
+//! density, evaluated in any [`Real`] type: `f64` for the image, dual
+//! numbers for directional derivatives, the tape for reverse mode. The
+//! primal is bit-identical whichever type evaluates it.
+
+use super::camera_rays::CameraRays;
+use super::march::{Marcher, Step};
+use super::photons::{emitters, Emitter, Photon, Tracer};
+use super::splat::{Kernel, SplatGeometry};
+use super::Image;
+use crate::ad::Real;
+use crate::scene::Scene;
+use crate::volume::{Grid, Majorant};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Voxels per majorant block edge: small enough to skip the plume's empty
+/// surroundings, large enough that the block walk is cheap.
+pub const MAJORANT_BLOCK: usize = 4;
+
+/// Wall-clock seconds per stage.
+#[derive(Clone, Debug, Default)]
+pub struct Timings {
+    /// Photon tracing.
+    pub trace: f64,
+    /// Photon estimate onto the grids (gathering).
+    pub gather: f64,
+    /// Camera rays: single scattering and reading the estimate.
+    pub camera: f64,
+    /// Everything, setup included.
+    pub total: f64,
+}
+
+/// The frozen estimator of one scene at its density (the sampling density).
+pub struct Frozen<'a> {
+    /// The scene; its density is the sampling density.
+    pub scene: &'a Scene,
+    marcher: Marcher,
+    emitters: Vec<Emitter>,
+    /// Stored photons, grouped by path in path order.
+    pub photons: Vec<Photon>,
+    /// Photons of path `i` are `photons[path_start[i]..path_start[i + 1]]`.
+    path_start: Vec<usize>,
+    geometry: Option<SplatGeometry>,
+    kernel: Kernel,
+    /// Index of each camera's first pixel among all pixels (names the pixel streams).
+    first_pixel: Vec<u64>,
+    /// The rendered images (primal), one per camera.
+    pub images: Vec<Image>,
+    /// Stage times of building this.
+    pub timings: Timings,
+}
+
+impl<'a> Frozen<'a> {
+    /// Traces the photons and renders the images of `scene`. `support`, if
+    /// given, widens where the medium may be (marching does not skip it):
+    /// use it when derivatives are wanted for voxels whose density is 0 now.
+    pub fn new(scene: &'a Scene, support: Option<&Grid<f64>>) -> Self {
+        let start = Instant::now();
+        let settings = &scene.render;
+        let density = &scene.density;
+        let mut bounds = density.clone();
+        if let Some(s) = support {
+            assert_eq!(s.shape, density.shape, "support grid must match the density grid");
+            bounds.data.iter_mut().zip(&s.data).for_each(|(b, s)| *b = b.max(*s));
+        }
+        let marcher = Marcher::new(density, Majorant::build(&bounds, MAJORANT_BLOCK), settings.step_for(density));
+        let mut timings = Timings::default();
+
+        let t = Instant::now();
+        let emitters = emitters(&scene.lights, &marcher.majorant);
+        let tracer = Tracer { density, medium: &scene.medium, marcher: &marcher, emitters: &emitters };
+        let photons = tracer.trace(settings.photons, settings.seed);
+        let mut path_start = vec![0usize; settings.photons as usize + 1];
+        for p in &photons {
+            path_start[p.path as usize + 1] += 1;
+        }
+        for i in 0..settings.photons as usize {
+            path_start[i + 1] += path_start[i];
+        }
+        timings.trace = t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let (geometry, kernel) = if photons.is_empty() {
+            (None, Kernel::default())
+        } else {
+            let geometry = SplatGeometry::new(density, settings.kernel_radius_for(density));
+            let kernel = geometry.kernel(&photons);
+            (Some(geometry), kernel)
+        };
+        timings.gather = t.elapsed().as_secs_f64();
+        let first_pixel = scene
+            .cameras
+            .iter()
+            .scan(0u64, |acc, c| {
+                let first = *acc;
+                *acc += c.pixels() as u64;
+                Some(first)
+            })
+            .collect();
+        let mut frozen = Frozen {
+            scene,
+            marcher,
+            emitters,
+            photons,
+            path_start,
+            geometry,
+            kernel,
+            first_pixel,
+            images: vec![],
+            timings,
+        };
+        let t = Instant::now();
+        let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
+        frozen.timings.gather += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let rays = frozen.camera_rays(density, None);
+        let images = (0..scene.cameras.len())
+            .map(|c| {
+                let camera = &scene.cameras[c];
+                let data = rays.image(camera, frozen.first_pixel[c], multiple.as_ref().map(|m| &m[c]));
+                Image { width: camera.width, height: camera.height, data }
+            })
+            .collect();
+        frozen.images = images;
+        frozen.timings.camera = t.elapsed().as_secs_f64();
+        frozen.timings.total = start.elapsed().as_secs_f64();
+        frozen
+    }
+
+    /// Camera rays reading `density`, with sampling decisions from `sampling`
+    /// (`None`: the primal of `density`).
+    pub fn camera_rays<'b, R: Real>(
+        &'b self,
+        density: &'b Grid<R>,
+        sampling: Option<&'b Grid<f64>>,
+    ) -> CameraRays<'b, R> {
+        CameraRays {
+            density,
+            sampling,
+            medium: &self.scene.medium,
+            lights: &self.scene.lights,
+            marcher: &self.marcher,
+            spp: self.scene.render.spp,
+            seed: self.scene.render.seed,
+        }
+    }
+
+    /// Photon tracing with this estimator's decisions.
+    pub fn tracer(&self) -> Tracer<'_> {
+        Tracer {
+            density: &self.scene.density,
+            medium: &self.scene.medium,
+            marcher: &self.marcher,
+            emitters: &self.emitters,
+        }
+    }
+
+    /// Number of emitted photons (paths).
+    pub fn paths(&self) -> usize {
+        self.path_start.len() - 1
+    }
+
+    /// Indices of the stored photons of path `i`.
+    pub fn path_photons(&self, i: usize) -> std::ops::Range<usize> {
+        self.path_start[i]..self.path_start[i + 1]
+    }
+
+    /// Index of camera `c`'s first pixel among all pixels.
+    pub fn first_pixel(&self, c: usize) -> u64 {
+        self.first_pixel[c]
+    }
+
+    /// The photon estimate towards each camera with photon `p`'s power given
+    /// by `power(p)`; `None` if there are no photons.
+    pub fn multiple_with<R: Real>(&self, power: impl Fn(usize) -> R + Sync) -> Option<Vec<Grid<R>>> {
+        let geometry = self.geometry.as_ref()?;
+        let cams: Vec<_> = self.scene.cameras.iter().map(|c| c.position).collect();
+        let m = &self.scene.medium;
+        Some(geometry.estimate_with(&self.photons, power, &self.kernel, &cams, m.albedo, m.g))
+    }
+
+    /// The splat geometry and kernel weights (`None` without photons).
+    pub fn kernel(&self) -> Option<(&SplatGeometry, &Kernel)> {
+        self.geometry.as_ref().map(|g| (g, &self.kernel))
+    }
+
+    /// Powers of all stored photons as functions of `density` (path replay).
+    pub fn photon_powers<R: Real>(&self, density: &Grid<R>) -> Vec<R> {
+        let tracer = self.tracer();
+        let (count, seed) = (self.scene.render.photons, self.scene.render.seed);
+        const CHUNK: usize = 512;
+        let parts: Vec<Vec<R>> = (0..self.paths().div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let mut steps: Vec<(Step, f64)> = vec![];
+                let mut powers = vec![];
+                for i in c * CHUNK..((c + 1) * CHUNK).min(self.paths()) {
+                    if !self.path_photons(i).is_empty() {
+                        tracer.replay(i as u64, count, seed, density, &mut steps, &mut powers);
+                    }
+                }
+                powers
+            })
+            .collect();
+        parts.into_iter().flatten().collect()
+    }
+
+    /// The images as functions of `density`, frozen at this estimator's
+    /// decisions (one `Vec` per camera, row-major).
+    pub fn images_with<R: Real>(&self, density: &Grid<R>) -> Vec<Vec<R>> {
+        let powers = self.photon_powers(density);
+        let multiple = self.multiple_with(|p| powers[p]);
+        let rays = self.camera_rays(density, Some(&self.scene.density));
+        (0..self.scene.cameras.len())
+            .map(|c| rays.image(&self.scene.cameras[c], self.first_pixel[c], multiple.as_ref().map(|m| &m[c])))
+            .collect()
+    }
+}

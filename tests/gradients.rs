@@ -1,0 +1,159 @@
+//! Derivatives of the frozen estimator, checked three ways on the same
+//! frozen sample: dual lanes == per-coordinate duals, forward == reverse,
+//! both == central finite differences.
+
+mod common;
+
+use dualphoton::ad::dual::with_tangents;
+use dualphoton::grad::forward::{coordinate_gradient, directional, random_gradient, Directions};
+use dualphoton::grad::loss::mse;
+use dualphoton::grad::reverse::{reverse_gradient, Subset};
+use dualphoton::math::Vec3;
+use dualphoton::render::frozen::Frozen;
+use dualphoton::render::Image;
+use dualphoton::rng::Rng;
+use dualphoton::scene::{Light, Scene};
+use num_dual::Dual64;
+
+/// A 10^3 blob with two lights and two 6x6 cameras.
+fn scene(max_order: u32) -> Scene {
+    let lights = vec![
+        Light { position: Vec3::new(1.5, 0.8, 2.0), intensity: 100.0 },
+        Light { position: Vec3::new(-2.0, -0.3, -1.0), intensity: 60.0 },
+    ];
+    let cams = vec![common::camera(2.2, 30.0, 6), {
+        let mut c = common::camera(2.2, 30.0, 6);
+        c.position = Vec3::new(2.2, 0.3, 0.0);
+        c
+    }];
+    let mut s = common::scene(common::blob(10), common::medium(0.9, 0.6, max_order), lights, cams);
+    s.render.photons = 2000;
+    s.render.seed = 3;
+    s
+}
+
+/// Targets: the images of a slightly different density, so residuals are non-zero.
+fn targets(scene: &Scene) -> Vec<Image> {
+    let mut other = scene.clone();
+    other.density.data.iter_mut().enumerate().for_each(|(i, v)| *v *= 0.8 + 0.4 * ((i * 7919) % 13) as f64 / 13.0);
+    dualphoton::render::render_photon(&other).images
+}
+
+/// Voxels: the blob's centre, its dense lump, a thin edge voxel, an empty corner.
+fn probe_voxels(scene: &Scene) -> Vec<(usize, &'static str)> {
+    let d = &scene.density;
+    let edge = (0..d.len()).filter(|&v| d.data[v] > 0.0).min_by(|&a, &b| d.data[a].total_cmp(&d.data[b])).unwrap();
+    vec![
+        (d.index(5, 5, 5), "centre"),
+        (d.index(5, 6, 6), "lump"),
+        (edge, "edge"),
+        (d.index(5, 5, 0), "empty side"),
+        (d.index(0, 0, 0), "corner"),
+    ]
+}
+
+/// The frozen loss at `scene.density + h e_v` (decisions from the scene's density).
+fn frozen_loss(frozen: &Frozen, targets: &[Image], v: usize, h: f64) -> f64 {
+    let mut d = frozen.scene.density.clone();
+    d.data[v] += h;
+    mse(&frozen.images_with(&d), targets)
+}
+
+#[test]
+fn dual_derivatives_match_central_differences_of_the_frozen_estimator() {
+    for order in [1, 2, 3] {
+        let scene = scene(order);
+        let targets = targets(&scene);
+        let frozen = Frozen::new(&scene, None);
+        for (v, name) in probe_voxels(&scene) {
+            let mut d = scene.density.map(Dual64::from_re);
+            d.data[v] = Dual64::new(scene.density.data[v], 1.0);
+            let dual = mse(&frozen.images_with(&d), &targets).eps;
+            // Richardson-extrapolated central differences: error O(h^4).
+            let h = 1e-3 * scene.density.data[v].max(0.01);
+            let c1 = (frozen_loss(&frozen, &targets, v, h) - frozen_loss(&frozen, &targets, v, -h)) / (2.0 * h);
+            let c2 = (frozen_loss(&frozen, &targets, v, h / 2.0) - frozen_loss(&frozen, &targets, v, -h / 2.0)) / h;
+            let fd = (4.0 * c2 - c1) / 3.0;
+            let floor = 1e-9;
+            let rel = (dual - fd).abs() / fd.abs().max(floor);
+            eprintln!("order {order}, {name} voxel {v}: dual {dual:.6e}, fd {fd:.6e}, rel {rel:.1e}");
+            assert!(rel <= 1e-5, "order {order}, {name}: dual {dual:e} vs fd {fd:e} (rel {rel:e})");
+        }
+    }
+}
+
+#[test]
+fn vector_lanes_equal_single_duals_bit_for_bit() {
+    let scene = scene(3);
+    let targets = targets(&scene);
+    let frozen = Frozen::new(&scene, None);
+    let voxels: Vec<usize> = probe_voxels(&scene).into_iter().map(|p| p.0).take(4).collect();
+    let mut d = scene.density.map(num_dual::DualSVec64::<4>::from_re);
+    for (k, &v) in voxels.iter().enumerate() {
+        let mut e = [0.0; 4];
+        e[k] = 1.0;
+        d.data[v] = with_tangents(scene.density.data[v], e);
+    }
+    let (loss, lanes) = directional(&frozen, &d, &targets);
+    for (k, &v) in voxels.iter().enumerate() {
+        let mut s = scene.density.map(Dual64::from_re);
+        s.data[v] = Dual64::new(scene.density.data[v], 1.0);
+        let single = mse(&frozen.images_with(&s), &targets);
+        assert_eq!(single.re.to_bits(), loss.to_bits(), "primal differs");
+        assert!(single.eps == lanes[k], "lane {k}: {} vs {}", lanes[k], single.eps);
+    }
+    let primal = mse(&frozen.images_with(&scene.density), &targets);
+    assert_eq!(primal.to_bits(), loss.to_bits(), "f64 primal differs from the dual primal");
+}
+
+#[test]
+fn forward_and_reverse_agree_on_every_voxel() {
+    for order in [1, 3] {
+        let scene = scene(order);
+        let targets = targets(&scene);
+        let frozen = Frozen::new(&scene, None);
+        let all: Vec<usize> = (0..scene.density.len()).collect();
+        let fwd = coordinate_gradient::<8>(&frozen, &all, &targets, &|_, _| {});
+        let rev = reverse_gradient(&frozen, &targets, Subset::full());
+        let scale = fwd.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+        assert!(scale > 0.0);
+        let mut worst = 0.0f64;
+        for v in 0..all.len() {
+            worst = worst.max((fwd[v] - rev.grad[v]).abs() / scale);
+        }
+        eprintln!("order {order}: max |fwd - rev| / max |g| = {worst:.2e}, peak tape {} B", rev.peak_tape_bytes);
+        assert!(worst <= 1e-9, "order {order}: forward and reverse differ by {worst:e} of the largest entry");
+    }
+}
+
+#[test]
+fn subset_and_random_estimators_are_unbiased() {
+    let scene = scene(3);
+    let targets = targets(&scene);
+    let frozen = Frozen::new(&scene, None);
+    let full = reverse_gradient(&frozen, &targets, Subset::full()).grad;
+    let params: Vec<usize> = (0..scene.density.len()).filter(|&v| full[v] != 0.0).collect();
+    let seeds = 64;
+    let check = |name: &str, estimates: Vec<Vec<f64>>| {
+        // Compare along the full gradient and a fixed random direction: the mean of the projections within 3 SE.
+        let mut rng = Rng::from_seed(99);
+        let probe: Vec<f64> = (0..full.len()).map(|_| rng.normal()).collect();
+        for (what, dir) in [("along g", &full), ("random", &probe)] {
+            let proj: Vec<f64> = estimates.iter().map(|e| e.iter().zip(dir).map(|(a, b)| a * b).sum()).collect();
+            let target: f64 = full.iter().zip(dir).map(|(a, b)| a * b).sum();
+            let n = proj.len() as f64;
+            let mean = proj.iter().sum::<f64>() / n;
+            let se = (proj.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+            eprintln!("{name} {what}: mean {mean:.4e}, full {target:.4e}, se {se:.2e}");
+            assert!((mean - target).abs() <= 3.0 * se + 1e-12 * target.abs(), "{name} ({what}) is biased");
+        }
+    };
+    let rev_sub: Vec<Vec<f64>> = (0..seeds)
+        .map(|s| reverse_gradient(&frozen, &targets, Subset { pixels: Some(20), paths: Some(300), seed: s }).grad)
+        .collect();
+    check("rev-sub", rev_sub);
+    let fwd_rand: Vec<Vec<f64>> = (0..seeds)
+        .map(|s| random_gradient::<4>(&frozen, &params, &targets, Directions::Gaussian, &mut Rng::from_seed(s)))
+        .collect();
+    check("fwd-rand", fwd_rand);
+}
