@@ -1,8 +1,12 @@
-//! The `dualphoton` command line: `render` and `scene` (see `--help`).
+//! The `dualphoton` command line: `render`, `grad` and `scene` (see `--help`).
 
 use clap::{Parser, Subcommand, ValueEnum};
 use dualphoton::error::{Error, Result};
+use dualphoton::grad::forward::Directions;
+use dualphoton::grad::loss::mse;
+use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES};
 use dualphoton::io::{npy, png};
+use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::{render_photon, Image};
 use dualphoton::scene::{file, rig, Scene};
@@ -69,6 +73,46 @@ enum Command {
         #[arg(long)]
         white: Option<f64>,
     },
+    /// Gradient of the MSE between the rendered images and target images with
+    /// respect to every density voxel, written as float32 (Z, Y, X).
+    Grad {
+        /// Scene file (JSON, DESIGN.md §1).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Directory with one target image per camera: cam0.npy, cam1.npy, ... (as `render` writes them).
+        #[arg(long)]
+        target: PathBuf,
+        /// Output file (.npy).
+        #[arg(long)]
+        out: PathBuf,
+        /// fwd-full, fwd-rand, rev-sub or rev-full.
+        #[arg(long, default_value = "rev-full")]
+        estimator: String,
+        /// Seed of the render (the images differentiated are those `render --seed N` writes).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Seed of the estimator's own draws (pixel/path subsets, random directions).
+        #[arg(long, default_value_t = 0)]
+        estimator_seed: u64,
+        /// Directions per forward pass: 1, 2, 4, 8 or 16.
+        #[arg(long, default_value_t = 8)]
+        lanes: usize,
+        /// rev-sub: pixels differentiated per gradient (the paper: 1000).
+        #[arg(long, default_value_t = 1000)]
+        pixels: usize,
+        /// rev-sub: photon paths differentiated per gradient (the paper: 5000).
+        #[arg(long, default_value_t = 5000)]
+        paths: usize,
+        /// Also compute these voxels by forward mode and print both: "k,j,i;k,j,i;...".
+        #[arg(long)]
+        voxels: Option<String>,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Photons emitted (default: the scene's render.photons).
+        #[arg(long)]
+        photons: Option<u64>,
+    },
     /// Write a built-in scene (scene.json + density.npy) to DIR.
     Scene {
         /// Which scene.
@@ -123,6 +167,39 @@ fn run(command: Command) -> Result<()> {
                 Method::Path => render_path_cmd(&scene, &out, white),
             }
         }
+        Command::Grad {
+            scene,
+            target,
+            out,
+            estimator,
+            seed,
+            estimator_seed,
+            lanes,
+            pixels,
+            paths,
+            voxels,
+            threads,
+            photons,
+        } => {
+            set_threads(threads)?;
+            let mut scene = file::load(&scene)?;
+            scene.render.seed = seed.unwrap_or(scene.render.seed);
+            scene.render.photons = photons.unwrap_or(scene.render.photons);
+            let opts = GradOptions {
+                estimator: estimator.parse()?,
+                lanes,
+                pixels,
+                paths,
+                directions: Directions::Gaussian,
+                seed: estimator_seed,
+            };
+            if !LANES.contains(&lanes) {
+                return Err(Error(format!("--lanes: {lanes} is not one of 1, 2, 4, 8, 16")));
+            }
+            let listed = voxels.map(|v| parse_voxels(&v, scene.density.shape)).transpose()?;
+            let targets = read_targets(&target, &scene)?;
+            grad_cmd(&scene, &targets, &opts, listed.as_deref(), &out)
+        }
         Command::Scene { preset: Preset::Paper, res, seed, from_scalarflow, out } => {
             if res == 0 || res > 512 {
                 return Err(Error(format!("--res: {res} must be in 1..=512")));
@@ -146,6 +223,87 @@ fn run(command: Command) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Parses "k,j,i;k,j,i" into flat voxel indices of a grid of `shape`.
+fn parse_voxels(text: &str, shape: [usize; 3]) -> Result<Vec<usize>> {
+    text.split(';')
+        .filter(|s| !s.trim().is_empty())
+        .map(|item| {
+            let idx: Vec<usize> = item
+                .split(',')
+                .map(|x| x.trim().parse::<usize>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| Error(format!("--voxels: {item:?} is not k,j,i")))?;
+            if idx.len() != 3 || idx[0] >= shape[0] || idx[1] >= shape[1] || idx[2] >= shape[2] {
+                return Err(Error(format!("--voxels: {item:?} is not a voxel of a grid of shape {shape:?}")));
+            }
+            Ok((idx[0] * shape[1] + idx[1]) * shape[2] + idx[2])
+        })
+        .collect()
+}
+
+/// The target images DIR/cam0.npy, ... one per camera, checked against the cameras' sizes.
+fn read_targets(dir: &Path, scene: &Scene) -> Result<Vec<Image>> {
+    scene
+        .cameras
+        .iter()
+        .enumerate()
+        .map(|(c, cam)| {
+            let path = dir.join(format!("cam{c}.npy"));
+            let a = npy::read(&path, "--target")?;
+            if a.shape != [cam.height, cam.width] {
+                return Err(Error(format!(
+                    "--target: {} has shape {:?}, camera {c} needs ({}, {})",
+                    path.display(),
+                    a.shape,
+                    cam.height,
+                    cam.width
+                )));
+            }
+            if a.data.iter().any(|v| !v.is_finite()) {
+                return Err(Error(format!("--target: {} has NaN or Inf pixels", path.display())));
+            }
+            Ok(Image { width: cam.width, height: cam.height, data: a.data })
+        })
+        .collect()
+}
+
+fn grad_cmd(scene: &Scene, targets: &[Image], opts: &GradOptions, listed: Option<&[usize]>, out: &Path) -> Result<()> {
+    let start = std::time::Instant::now();
+    let frozen = Frozen::new(scene, None);
+    let progress = |done: usize, total: usize| {
+        let t = start.elapsed().as_secs_f64();
+        eprint!(
+            "\rfwd-full: {done}/{total} directions, {t:.0} s, ETA {:.0} s   ",
+            t * (total - done) as f64 / done.max(1) as f64
+        );
+    };
+    let grad = voxel_gradient(&frozen, targets, opts, &progress)?;
+    if opts.estimator == Estimator::FwdFull {
+        eprintln!();
+    }
+    if grad.iter().any(|g| !g.is_finite()) {
+        return Err(Error::new("internal error: the gradient has non-finite entries; please report this scene"));
+    }
+    npy::write_f32(out, &scene.density.shape, &grad)?;
+    let loss = mse(&frozen.images.iter().map(|i| i.data.clone()).collect::<Vec<_>>(), targets);
+    eprintln!(
+        "grad ({}): loss {loss:.6e}, |grad| {:.6e}, {:.2} s -> {}",
+        opts.estimator.name(),
+        grad.iter().map(|g| g * g).sum::<f64>().sqrt(),
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if let Some(voxels) = listed {
+        let fwd = forward_at(&frozen, targets, voxels, opts.lanes)?;
+        let [_, ny, nx] = scene.density.shape;
+        println!("voxel (k, j, i)\t{}\tforward", opts.estimator.name());
+        for (&v, f) in voxels.iter().zip(fwd) {
+            println!("({}, {}, {})\t{:.9e}\t{:.9e}", v / (ny * nx), (v / nx) % ny, v % nx, grad[v], f);
+        }
+    }
+    Ok(())
 }
 
 fn set_threads(threads: Option<usize>) -> Result<()> {

@@ -58,3 +58,92 @@ impl Estimator {
         }
     }
 }
+
+use crate::render::frozen::Frozen;
+use crate::render::Image;
+use crate::rng::{Purpose, Rng};
+use forward::{coordinate_gradient, random_gradient, Directions};
+use reverse::{reverse_gradient, Subset};
+
+/// Lane counts a forward pass can carry (`DualSVec64<K>`).
+pub const LANES: [usize; 5] = [1, 2, 4, 8, 16];
+
+/// Settings of a voxel gradient.
+#[derive(Clone, Debug)]
+pub struct GradOptions {
+    /// Which estimator.
+    pub estimator: Estimator,
+    /// Directions per forward pass (one of [`LANES`]).
+    pub lanes: usize,
+    /// `rev-sub`: pixels differentiated (the paper: 1,000).
+    pub pixels: usize,
+    /// `rev-sub`: photon paths differentiated (the paper: 5,000).
+    pub paths: usize,
+    /// `fwd-rand`: how directions are drawn.
+    pub directions: Directions,
+    /// Seed of the estimator's own draws (subsets, directions).
+    pub seed: u64,
+}
+
+impl Default for GradOptions {
+    fn default() -> Self {
+        GradOptions {
+            estimator: Estimator::RevFull,
+            lanes: 8,
+            pixels: 1000,
+            paths: 5000,
+            directions: Directions::Gaussian,
+            seed: 0,
+        }
+    }
+}
+
+/// Calls `$f::<K>` with the const K equal to the runtime `$lanes`.
+#[macro_export]
+macro_rules! with_lanes {
+    ($lanes:expr, $f:ident ( $($arg:expr),* )) => {
+        match $lanes {
+            1 => $f::<1>($($arg),*),
+            2 => $f::<2>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            8 => $f::<8>($($arg),*),
+            16 => $f::<16>($($arg),*),
+            k => return Err($crate::error::Error(format!("--lanes: {k} is not one of 1, 2, 4, 8, 16"))),
+        }
+    };
+}
+
+/// `dL/drho` for every voxel (zero where no lookup reaches) by the chosen
+/// estimator. `progress(done, total)` reports forward passes of `fwd-full`.
+pub fn voxel_gradient(
+    frozen: &Frozen,
+    targets: &[Image],
+    opts: &GradOptions,
+    progress: &dyn Fn(usize, usize),
+) -> Result<Vec<f64>> {
+    let voxels = frozen.scene.density.len();
+    Ok(match opts.estimator {
+        Estimator::RevFull => reverse_gradient(frozen, targets, Subset::full()).grad,
+        Estimator::RevSub => {
+            let subset = Subset { pixels: Some(opts.pixels), paths: Some(opts.paths), seed: opts.seed };
+            reverse_gradient(frozen, targets, subset).grad
+        }
+        Estimator::FwdFull => {
+            let reach = frozen.reachable_voxels();
+            let part = with_lanes!(opts.lanes, coordinate_gradient(frozen, &reach, targets, progress));
+            let mut grad = vec![0.0; voxels];
+            reach.iter().zip(part).for_each(|(&v, g)| grad[v] = g);
+            grad
+        }
+        Estimator::FwdRand => {
+            let reach = frozen.reachable_voxels();
+            let mut rng = Rng::new(opts.seed, Purpose::Gradient, 1);
+            with_lanes!(opts.lanes, random_gradient(frozen, &reach, targets, opts.directions, &mut rng))
+        }
+    })
+}
+
+/// `dL/drho` at the listed voxels by forward mode (coordinate directions).
+pub fn forward_at(frozen: &Frozen, targets: &[Image], voxels: &[usize], lanes: usize) -> Result<Vec<f64>> {
+    Ok(with_lanes!(lanes, coordinate_gradient(frozen, voxels, targets, &|_, _| {})))
+}

@@ -158,6 +158,12 @@ impl<'a> Frozen<'a> {
         }
     }
 
+    /// The voxels any lookup of this estimator can read: the only ones with
+    /// possibly non-zero derivatives.
+    pub fn reachable_voxels(&self) -> Vec<usize> {
+        self.marcher.majorant.reachable_voxels(self.scene.density.shape, MAJORANT_BLOCK)
+    }
+
     /// Number of emitted photons (paths).
     pub fn paths(&self) -> usize {
         self.path_start.len() - 1

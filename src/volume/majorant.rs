@@ -44,6 +44,30 @@ impl Majorant {
         Majorant { lo: grid.lo, cell, n, max }
     }
 
+    /// Flat indices of the voxels a lookup inside a non-empty block can read
+    /// (the blocks' voxels plus one on each side), in increasing order.
+    pub fn reachable_voxels(&self, shape: [usize; 3], block: usize) -> Vec<usize> {
+        let [nz, ny, nx] = shape;
+        let mut mark = vec![false; nz * ny * nx];
+        let range = |m: usize, len: usize| (m * block).saturating_sub(1)..((m + 1) * block + 1).min(len);
+        for bz in 0..self.n[2] {
+            for by in 0..self.n[1] {
+                for bx in 0..self.n[0] {
+                    if self.max[(bz * self.n[1] + by) * self.n[0] + bx] > 0.0 {
+                        for k in range(bz, nz) {
+                            for j in range(by, ny) {
+                                for i in range(bx, nx) {
+                                    mark[(k * ny + j) * nx + i] = true;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (0..mark.len()).filter(|&v| mark[v]).collect()
+    }
+
     /// The largest bound of all blocks.
     pub fn global_max(&self) -> f64 {
         self.max.iter().fold(0.0, |a, &b| a.max(b))
