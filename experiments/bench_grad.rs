@@ -103,7 +103,8 @@ fn run(mut args: Args) -> Result<()> {
     });
     let frozen = Frozen::new(&scene, None);
     let reach = frozen.reachable_voxels();
-    let coords: Vec<usize> = reach.iter().step_by((reach.len() / args.directions).max(1)).take(args.directions).copied().collect();
+    let coords: Vec<usize> =
+        reach.iter().step_by((reach.len() / args.directions).max(1)).take(args.directions).copied().collect();
     eprintln!("primal: {primal_s:.3} s, {primal_mib:.0} MiB; {} reachable voxels", reach.len());
 
     let mut rows: Vec<(String, usize, usize, f64, f64)> = vec![];
@@ -131,8 +132,16 @@ fn run(mut args: Args) -> Result<()> {
     forward!(1, 2, 4, 8, 16);
 
     let mut csv = csv::Writer::from_path(args.out.join("bench.csv")).map_err(|e| Error(e.to_string()))?;
-    csv.write_record(["estimator", "lanes", "directions", "seconds", "time_ratio_to_primal", "peak_mib", "primal_peak_mib"])
-        .map_err(|e| Error(e.to_string()))?;
+    csv.write_record([
+        "estimator",
+        "lanes",
+        "directions",
+        "seconds",
+        "time_ratio_to_primal",
+        "peak_mib",
+        "primal_peak_mib",
+    ])
+    .map_err(|e| Error(e.to_string()))?;
     let mut md = format!(
         "# Cost of one gradient, paper rig {r}^3 ({} cameras of {r}x{r}, {} photons)\n\n\
          Primal render (photon tracing + estimate + camera rays): {primal_s:.3} s, peak {primal_mib:.0} MiB (median of {}; {} threads).\n\
@@ -145,12 +154,29 @@ fn run(mut args: Args) -> Result<()> {
         r = args.res
     );
     for (name, k, dirs, s, m) in &rows {
-        csv.write_record([name.clone(), k.to_string(), dirs.to_string(), format!("{s:.4}"), format!("{:.3}", s / primal_s), format!("{m:.1}"), format!("{primal_mib:.1}")])
-            .map_err(|e| Error(e.to_string()))?;
-        let _ = writeln!(md, "| {name} | {} | {dirs} | {s:.3} | {:.2} | {m:.0} |", if *k == 0 { "-".into() } else { k.to_string() }, s / primal_s);
+        csv.write_record([
+            name.clone(),
+            k.to_string(),
+            dirs.to_string(),
+            format!("{s:.4}"),
+            format!("{:.3}", s / primal_s),
+            format!("{m:.1}"),
+            format!("{primal_mib:.1}"),
+        ])
+        .map_err(|e| Error(e.to_string()))?;
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {dirs} | {s:.3} | {:.2} | {m:.0} |",
+            if *k == 0 { "-".into() } else { k.to_string() },
+            s / primal_s
+        );
     }
     csv.flush()?;
-    let _ = writeln!(md, "\nRegenerate: `cargo run --release --bin bench_grad` ({:.0} s).", started.elapsed().as_secs_f64());
+    let _ = writeln!(
+        md,
+        "\nRegenerate: `cargo run --release --bin bench_grad` ({:.0} s).",
+        started.elapsed().as_secs_f64()
+    );
     std::fs::write(args.out.join("summary.md"), &md)?;
     write_json(
         &args.out.join("manifest.json"),

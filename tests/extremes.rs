@@ -54,7 +54,11 @@ fn values_and_derivatives_are_finite() {
         for im in &frozen.images {
             assert!(im.data.iter().all(|v| v.is_finite() && *v >= 0.0), "{name}: image not finite");
         }
-        let targets: Vec<_> = frozen.images.iter().map(|i| dualphoton::render::Image { data: vec![0.01; i.data.len()], ..i.clone() }).collect();
+        let targets: Vec<_> = frozen
+            .images
+            .iter()
+            .map(|i| dualphoton::render::Image { data: vec![0.01; i.data.len()], ..i.clone() })
+            .collect();
         let rev = reverse_gradient(&frozen, &targets, Subset::full());
         assert!(rev.loss.is_finite() && rev.grad.iter().all(|g| g.is_finite()), "{name}: reverse gradient not finite");
         let all: Vec<usize> = (0..scene.density.len()).collect();

@@ -39,6 +39,8 @@ pub struct Frozen<'a> {
     pub scene: &'a Scene,
     marcher: Marcher,
     emitters: Vec<Emitter>,
+    /// Camera positions guiding photon scattering.
+    guide: Vec<crate::math::Vec3>,
     /// Stored photons, grouped by path in path order.
     pub photons: Vec<Photon>,
     /// Photons of path `i` are `photons[path_start[i]..path_start[i + 1]]`.
@@ -70,8 +72,9 @@ impl<'a> Frozen<'a> {
         let mut timings = Timings::default();
 
         let t = Instant::now();
-        let emitters = emitters(&scene.lights, &marcher.majorant);
-        let tracer = Tracer { density, medium: &scene.medium, marcher: &marcher, emitters: &emitters };
+        let emitters = emitters(&scene.lights, &marcher.majorant, &density.lo, &density.hi);
+        let guide: Vec<_> = scene.cameras.iter().map(|c| c.position).collect();
+        let tracer = Tracer { density, medium: &scene.medium, marcher: &marcher, emitters: &emitters, guide: &guide };
         let photons = tracer.trace(settings.photons, settings.seed);
         let mut path_start = vec![0usize; settings.photons as usize + 1];
         for p in &photons {
@@ -104,6 +107,7 @@ impl<'a> Frozen<'a> {
             scene,
             marcher,
             emitters,
+            guide,
             photons,
             path_start,
             geometry,
@@ -155,6 +159,7 @@ impl<'a> Frozen<'a> {
             medium: &self.scene.medium,
             marcher: &self.marcher,
             emitters: &self.emitters,
+            guide: &self.guide,
         }
     }
 

@@ -13,5 +13,6 @@ pub mod photons;
 pub mod splat;
 
 pub use photon::{render_photon, PhotonRender};
+pub mod emission;
 pub mod frozen;
 pub mod metrics;

@@ -5,13 +5,14 @@
 //! photon is stored at its 2nd..max_order-th collision with the power that
 //! arrives there (the 1st collision is single scattering, computed directly).
 
+pub use super::emission::{emitters, Emitter};
 use super::march::{Marcher, Step};
 use crate::ad::Real;
-use crate::math::{cone_solid_angle, sample_cone, Ray, Vec3};
+use crate::math::{Ray, Vec3};
 use crate::rng::{Purpose, Rng};
-use crate::scene::{Light, Medium};
-use crate::volume::phase::hg_sample;
-use crate::volume::{Grid, Majorant};
+use crate::scene::Medium;
+use crate::volume::phase::{hg_eval, hg_sample};
+use crate::volume::Grid;
 use rayon::prelude::*;
 
 /// A stored photon: the flux arriving at a collision.
@@ -29,43 +30,6 @@ pub struct Photon {
     pub order: u8,
 }
 
-/// How one light emits: uniformly into the cone around the occupied region.
-#[derive(Clone, Debug)]
-pub struct Emitter {
-    /// Light position.
-    pub position: Vec3,
-    /// Cone axis (unit), from the light to the occupied region's centre.
-    pub axis: Vec3,
-    /// Cosine of the cone's half-angle (-1: the whole sphere).
-    pub cos_max: f64,
-    /// Power sent into the cone (W): intensity times solid angle.
-    pub power: f64,
-}
-
-/// Emitters for `lights` aimed at the occupied region (`None`: the volume
-/// is empty and no light can reach anything). Lights of zero intensity get
-/// zero power and hence no photons.
-pub fn emitters(lights: &[Light], majorant: &Majorant) -> Vec<Emitter> {
-    let Some((lo, hi)) = majorant.occupied_bounds() else {
-        return vec![];
-    };
-    let centre = (lo + hi) * 0.5;
-    let radius = (hi - lo).norm() * 0.5;
-    lights
-        .iter()
-        .map(|l| {
-            let to = centre - l.position;
-            let d = to.norm();
-            let (axis, cos_max) = if d <= radius * 1.000001 {
-                (Vec3::new(0.0, 0.0, 1.0), -1.0)
-            } else {
-                (to / d, (1.0 - (radius / d).powi(2)).max(0.0).sqrt())
-            };
-            Emitter { position: l.position, axis, cos_max, power: l.intensity * cone_solid_angle(cos_max) }
-        })
-        .collect()
-}
-
 /// Everything photon tracing reads.
 pub struct Tracer<'a> {
     /// Density the sampling decisions use.
@@ -76,7 +40,12 @@ pub struct Tracer<'a> {
     pub marcher: &'a Marcher,
     /// The lights' emission cones.
     pub emitters: &'a [Emitter],
+    /// Camera positions that steer part of the scattered photons (empty: plain HG sampling).
+    pub guide: &'a [Vec3],
 }
+
+/// Share of scattering events whose direction is drawn towards a camera.
+pub const GUIDE_SHARE: f64 = 0.5;
 
 impl Tracer<'_> {
     /// Power sent towards the medium by all lights (W).
@@ -158,7 +127,7 @@ impl Tracer<'_> {
         let total = self.total_power();
         let mut rng = Rng::new(seed, Purpose::Photon, i);
         let e = self.emitter_of(i, count, total);
-        let mut ray = Ray { origin: e.position, dir: sample_cone(&e.axis, e.cos_max, rng.uniform(), rng.uniform()) };
+        let mut ray = Ray { origin: e.position, dir: e.sample(rng.uniform(), rng.uniform(), rng.uniform()) };
         let mut power = total / count as f64;
         let mut power_r = R::cst(power);
         for order in 1..=self.medium.max_order {
@@ -175,10 +144,37 @@ impl Tracer<'_> {
             if order == self.medium.max_order {
                 return;
             }
-            power *= self.medium.albedo;
-            power_r = power_r * self.medium.albedo;
-            ray = Ray { origin: pos, dir: hg_sample(self.medium.g, &ray.dir, rng.uniform(), rng.uniform()) };
+            let (dir, weight) = self.scatter(&pos, &ray.dir, &mut rng);
+            power *= self.medium.albedo * weight;
+            power_r = power_r * (self.medium.albedo * weight);
+            ray = Ray { origin: pos, dir };
         }
+    }
+
+    /// A scattered direction at `x` for light arriving along `w_in`, and its
+    /// weight `p_HG / pdf`. With cameras to guide, the direction comes with
+    /// probability [`GUIDE_SHARE`] from a Henyey-Greenstein lobe (same g)
+    /// around the direction to a random camera, else from p_HG itself: the
+    /// one-sample mixture keeps the estimate unbiased and the weight at most
+    /// `1 / (1 - GUIDE_SHARE)`. It matters because with g near 1 and the
+    /// cameras beside the lights, the few photons heading for a camera
+    /// carry most of what the cameras see.
+    fn scatter(&self, x: &Vec3, w_in: &Vec3, rng: &mut Rng) -> (Vec3, f64) {
+        let g = self.medium.g;
+        let axes = || self.guide.iter().filter_map(|c| (c - x).try_normalize(0.0));
+        let n = axes().count();
+        if n == 0 {
+            return (hg_sample(g, w_in, rng.uniform(), rng.uniform()), 1.0);
+        }
+        let dir = if rng.uniform() < GUIDE_SHARE {
+            let axis = axes().nth((rng.uniform() * n as f64) as usize % n).unwrap();
+            hg_sample(g, &axis, rng.uniform(), rng.uniform())
+        } else {
+            hg_sample(g, w_in, rng.uniform(), rng.uniform())
+        };
+        let p = hg_eval(g, w_in.dot(&dir));
+        let q: f64 = axes().map(|a| hg_eval(g, a.dot(&dir))).sum::<f64>() / n as f64;
+        (dir, p / ((1.0 - GUIDE_SHARE) * p + GUIDE_SHARE * q))
     }
 
     /// `sigma_t(x_t) e^{-tau(t)}` of `density` over the same of the sampling
