@@ -3,7 +3,7 @@
 //! ScalarFlow frame (DESIGN.md §4).
 //!
 //! How it is made, in three stages:
-//! 1. **Simulation** ([`fluid`]): buoyant smoke is released from a small
+//! 1. **Simulation** (submodule `fluid`): buoyant smoke is released from a small
 //!    ball near the bottom centre into air with random drafts, and the run
 //!    stops when the head of the plume nears the top of the box ("captured
 //!    mid-rise", about 40-60 steps). The grid is fixed (1/48 of the box per
@@ -14,7 +14,7 @@
 //!    fractal noise warp that grows with height, times a log-normal fractal
 //!    modulation `exp(3 fbm)`: turbulent puffs and wisps finer than the
 //!    simulation grid.
-//! 3. **Tone** ([`Tone`]): a monotone curve, fitted per seed on a fixed
+//! 3. **Tone** (type `Tone`): a monotone curve, fitted per seed on a fixed
 //!    48^3 lattice, maps that raw density by rank onto a power law, so that
 //!    the statistics are those of the paper's ground truth: many voxels of
 //!    thin smoke and a few dense ones (mean about [`TARGET_MEAN`] over
@@ -63,6 +63,9 @@ const EMPTY: f64 = 4e-4;
 
 /// At most this share of the calibration lattice is occupied.
 const MAX_OCCUPANCY: f64 = 0.2;
+
+/// Headroom of the tone above its last knot, relative (see [`Tone`]).
+const KNEE: f64 = 0.1;
 
 /// Occupancy and value statistics of a density grid.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -228,9 +231,11 @@ fn margin(p: &Vec3) -> f64 {
 /// values of a calibration lattice: the occupied ones (above [`EMPTY`] of
 /// the largest, at most the top [`MAX_OCCUPANCY`]) are mapped by rank onto
 /// the power law `pdf(v) ~ v^-alpha` on `[CUTOFF, PLUME_MAX]` whose mean is
-/// [`TARGET_MEAN`] (alpha about 2.06: two thirds of the occupied voxels
+/// [`TARGET_MEAN`] (alpha about 2.1: 70 % of the occupied voxels
 /// below 0.03, about 1 % above 0.5). Piecewise linear between 256 rank
-/// knots, proportional to the raw value beyond the last; 0 below the first.
+/// knots, 0 below the first, and above the last rising with unit slope
+/// (in raw / last raw) into a soft knee that saturates at `1 + KNEE` times
+/// [`PLUME_MAX`].
 #[derive(Clone, Debug, Default)]
 struct Tone {
     /// Raw values of the knots, strictly increasing.
@@ -272,7 +277,11 @@ impl Tone {
         }
         let m = self.raw.partition_point(|&x| x <= r);
         if m == n {
-            return self.out[n - 1] * r / self.raw[n - 1];
+            // Soft knee: finer sampling than the calibration lattice finds
+            // higher peaks; saturating them keeps the final rescale to
+            // PLUME_MAX, hence the statistics, nearly the same at every res.
+            let x = r / self.raw[n - 1] - 1.0;
+            return self.out[n - 1] * (1.0 + KNEE * (1.0 - (-x / KNEE).exp()));
         }
         let t = (r - self.raw[m - 1]) / (self.raw[m] - self.raw[m - 1]);
         self.out[m - 1] + t * (self.out[m] - self.out[m - 1])
@@ -408,12 +417,13 @@ mod tests {
 
     #[test]
     fn resolutions_sample_the_same_plume() {
-        let (smoke, fine) = shared();
-        let coarse = sample(smoke, 32);
-        let d = centre_of_mass(&coarse) - centre_of_mass(fine);
-        assert!(d.norm() < 0.02, "{d:?}");
-        let (a, b) = (plume_stats(&coarse), plume_stats(fine));
-        assert!((a.fraction_occupied / b.fraction_occupied - 1.0).abs() < 0.25, "{a:?} {b:?}");
+        let (smoke, at64) = shared();
+        let at96 = sample(smoke, 96);
+        let d = centre_of_mass(&at96) - centre_of_mass(at64);
+        assert!(d.norm() < 0.01, "{d:?}");
+        let (a, b) = (plume_stats(&at96), plume_stats(at64));
+        assert!((a.fraction_occupied / b.fraction_occupied - 1.0).abs() < 0.05, "{a:?} {b:?}");
+        assert!((a.mean_occupied / b.mean_occupied - 1.0).abs() < 0.05, "{a:?} {b:?}");
     }
 
     #[test]
