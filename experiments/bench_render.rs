@@ -78,7 +78,14 @@ struct Reference {
 /// Loads the reference of `dir` if it was made with `spp`, else renders and saves it.
 fn reference(scene: &Scene, spp: u32, dir: &Path) -> Result<Reference> {
     let manifest_path = dir.join("manifest.json");
-    let wanted = json!({"spp": spp, "seed": REF_SEED, "plume_seed": SEED, "res": scene.density.shape[0], "max_order": scene.medium.max_order});
+    // The density's bits name it: a changed plume generator invalidates the reference.
+    let fingerprint = scene
+        .density
+        .data
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100_0000_01b3));
+    let wanted = json!({"spp": spp, "seed": REF_SEED, "plume_seed": SEED, "res": scene.density.shape[0],
+                        "max_order": scene.medium.max_order, "density_fnv1a": format!("{fingerprint:016x}")});
     if let Ok(text) = std::fs::read_to_string(&manifest_path) {
         if let Ok(m) = serde_json::from_str::<serde_json::Value>(&text) {
             if m.get("key") == Some(&wanted) {

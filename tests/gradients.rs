@@ -56,7 +56,7 @@ fn probe_voxels(scene: &Scene) -> Vec<(usize, &'static str)> {
 fn frozen_loss(frozen: &Frozen, targets: &[Image], v: usize, h: f64) -> f64 {
     let mut d = frozen.scene.density.clone();
     d.data[v] += h;
-    mse(&frozen.images_with(&d), targets)
+    mse(&frozen.images_with(&d, 2), targets)
 }
 
 #[test]
@@ -68,7 +68,7 @@ fn dual_derivatives_match_central_differences_of_the_frozen_estimator() {
         for (v, name) in probe_voxels(&scene) {
             let mut d = scene.density.map(Dual64::from_re);
             d.data[v] = Dual64::new(scene.density.data[v], 1.0);
-            let dual = mse(&frozen.images_with(&d), &targets).eps;
+            let dual = mse(&frozen.images_with(&d, 2), &targets).eps;
             // Richardson-extrapolated central differences: error O(h^4).
             let h = 1e-3 * scene.density.data[v].max(0.01);
             let c1 = (frozen_loss(&frozen, &targets, v, h) - frozen_loss(&frozen, &targets, v, -h)) / (2.0 * h);
@@ -98,11 +98,11 @@ fn vector_lanes_equal_single_duals_bit_for_bit() {
     for (k, &v) in voxels.iter().enumerate() {
         let mut s = scene.density.map(Dual64::from_re);
         s.data[v] = Dual64::new(scene.density.data[v], 1.0);
-        let single = mse(&frozen.images_with(&s), &targets);
+        let single = mse(&frozen.images_with(&s, 2), &targets);
         assert_eq!(single.re.to_bits(), loss.to_bits(), "primal differs");
         assert!(single.eps == lanes[k], "lane {k}: {} vs {}", lanes[k], single.eps);
     }
-    let primal = mse(&frozen.images_with(&scene.density), &targets);
+    let primal = mse(&frozen.images_with(&scene.density, 2), &targets);
     assert_eq!(primal.to_bits(), loss.to_bits(), "f64 primal differs from the dual primal");
 }
 

@@ -57,13 +57,13 @@ enum Command {
         /// Photons emitted (default: render.photons, else 300000).
         #[arg(long)]
         photons: Option<u64>,
-        /// Photon kernel radius in world units (default: render.kernel_radius, else 2 voxels).
+        /// Photon kernel radius in world units (default: render.kernel_radius, else 1.5 voxels).
         #[arg(long)]
         radius: Option<f64>,
         /// Ray-marching step in world units (default: render.step, else half a voxel).
         #[arg(long)]
         step: Option<f64>,
-        /// Samples per pixel of the photon renderer (default: render.spp, else 1).
+        /// Samples per pixel of the photon renderer (default: render.spp, else 4).
         #[arg(long)]
         spp: Option<u32>,
         /// Samples per pixel of the path tracer (default: render.path_spp, else 256).

@@ -11,13 +11,15 @@ use crate::rng::Rng;
 use crate::volume::Grid;
 use num_dual::DualSVec64;
 
-/// The loss and its K directional derivatives along the tangents `density` carries.
+/// The loss and its K directional derivatives along the tangents `density`
+/// carries. The targets belong to the scene's first `targets.len()` cameras;
+/// cameras after them (held out) are not rendered.
 pub fn directional<const K: usize>(
     frozen: &Frozen,
     density: &Grid<DualSVec64<K>>,
     targets: &[Image],
 ) -> (f64, [f64; K]) {
-    let loss = mse(&frozen.images_with(density), targets);
+    let loss = mse(&frozen.images_with(density, targets.len()), targets);
     (loss.re, std::array::from_fn(|k| lane(&loss, k)))
 }
 

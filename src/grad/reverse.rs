@@ -136,7 +136,8 @@ fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut
     peak
 }
 
-/// `dL/drho` of the frozen estimator by reverse mode over `subset`.
+/// `dL/drho` of the frozen estimator by reverse mode over `subset`. The
+/// targets belong to the scene's first `targets.len()` cameras.
 pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> Reverse {
     let scene = frozen.scene;
     let density = &scene.density;
@@ -179,7 +180,8 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     let mut total = vec![0.0; leaves];
 
     // (1) Pixels.
-    let sizes: Vec<usize> = scene.cameras.iter().map(|c| c.pixels()).collect();
+    // Only cameras with a target are differentiated (later ones are held out).
+    let sizes: Vec<usize> = scene.cameras.iter().take(targets.len()).map(|c| c.pixels()).collect();
     let (pixels, pixel_scale) = draw_subset(sizes.iter().sum(), subset.pixels, &mut rng);
     let rays = frozen.camera_rays(&leaf_density, None);
     let locate = |mut i: usize| {
@@ -211,7 +213,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
                     let photon = &frozen.photons[p];
                     let range = kernel.start[p]..kernel.start[p + 1];
                     let mut adj = 0.0;
-                    for (c, cam) in scene.cameras.iter().enumerate() {
+                    for (c, cam) in scene.cameras.iter().enumerate().take(targets.len()) {
                         let to_cam = cam.position - photon.pos;
                         let dist = to_cam.norm();
                         if dist == 0.0 {

@@ -47,16 +47,26 @@ impl<R: Real> CameraRays<'_, R> {
             .collect()
     }
 
-    /// Pixel `p` (row-major) of `camera`: the mean of `spp` jittered rays.
+    /// Pixel `p` (row-major) of `camera`: the mean of `spp` jittered rays,
+    /// stratified as a Latin hypercube over the pixel (one sample per row
+    /// and per column stratum).
     pub fn pixel(&self, camera: &Camera, first_pixel: u64, p: usize, multiple: Option<&Grid<R>>) -> R {
         let mut rng = Rng::new(self.seed, Purpose::Pixel, first_pixel + p as u64);
         let (x, y) = ((p % camera.width) as f64, (p / camera.width) as f64);
+        let n = self.spp as usize;
+        // A random permutation pairs the x strata with the y strata.
+        let mut rows: Vec<usize> = (0..n).collect();
+        for i in (1..n).rev() {
+            rows.swap(i, rng.below(i as u64 + 1) as usize);
+        }
         let mut sum = R::cst(0.0);
-        for _ in 0..self.spp {
-            let ray = camera.ray(x + rng.uniform(), y + rng.uniform());
+        for (s, &row) in rows.iter().enumerate() {
+            let sx = (s as f64 + rng.uniform()) / n as f64;
+            let sy = (row as f64 + rng.uniform()) / n as f64;
+            let ray = camera.ray(x + sx, y + sy);
             sum += self.radiance(&ray, rng.uniform(), rng.uniform(), multiple);
         }
-        sum * (1.0 / self.spp as f64)
+        sum * (1.0 / n as f64)
     }
 
     /// Radiance arriving along `-ray.dir` at the ray's origin.

@@ -219,13 +219,13 @@ impl<'a> Frozen<'a> {
         parts.into_iter().flatten().collect()
     }
 
-    /// The images as functions of `density`, frozen at this estimator's
-    /// decisions (one `Vec` per camera, row-major).
-    pub fn images_with<R: Real>(&self, density: &Grid<R>) -> Vec<Vec<R>> {
+    /// The images of the first `cameras` cameras as functions of `density`,
+    /// frozen at this estimator's decisions (one `Vec` per camera, row-major).
+    pub fn images_with<R: Real>(&self, density: &Grid<R>, cameras: usize) -> Vec<Vec<R>> {
         let powers = self.photon_powers(density);
         let multiple = self.multiple_with(|p| powers[p]);
         let rays = self.camera_rays(density, Some(&self.scene.density));
-        (0..self.scene.cameras.len())
+        (0..cameras.min(self.scene.cameras.len()))
             .map(|c| rays.image(&self.scene.cameras[c], self.first_pixel[c], multiple.as_ref().map(|m| &m[c])))
             .collect()
     }

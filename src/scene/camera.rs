@@ -39,8 +39,47 @@ impl Camera {
         Ray { origin: self.position, dir: (forward + right * sx + up * sy).normalize() }
     }
 
+    /// Image position `(x, y)` in pixel units (as [`ray`](Self::ray) takes
+    /// them) where `p` appears, or `None` if `p` is not in front of the camera.
+    pub fn project(&self, p: &Vec3) -> Option<(f64, f64)> {
+        let (right, up, forward) = self.basis();
+        let v = p - self.position;
+        let depth = v.dot(&forward);
+        if depth <= 0.0 {
+            return None;
+        }
+        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = self.width as f64 / self.height as f64;
+        let sx = v.dot(&right) / depth / (tan_half * aspect);
+        let sy = v.dot(&up) / depth / tan_half;
+        Some(((sx + 1.0) * 0.5 * self.width as f64, (1.0 - sy) * 0.5 * self.height as f64))
+    }
+
     /// Number of pixels.
     pub fn pixels(&self) -> usize {
         self.width * self.height
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn project_inverts_ray() {
+        let c = Camera {
+            position: Vec3::new(1.0, 0.5, 2.5),
+            look_at: Vec3::new(0.0, 0.1, 0.0),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            fov_y_deg: 40.0,
+            width: 64,
+            height: 48,
+        };
+        for (x, y) in [(0.5, 0.5), (10.2, 40.7), (63.9, 1.0)] {
+            let r = c.ray(x, y);
+            let (px, py) = c.project(&r.at(2.0)).unwrap();
+            assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9);
+        }
+        assert!(c.project(&Vec3::new(1.0, 0.5, 4.0)).is_none());
     }
 }

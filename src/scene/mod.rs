@@ -37,13 +37,13 @@ pub struct Light {
 pub struct RenderSettings {
     /// Photons emitted in all (split among lights by the power that reaches the volume).
     pub photons: u64,
-    /// Photon gathering radius (world units); default 2 voxel sizes.
+    /// Photon gathering radius (world units); default 1.5 voxel sizes.
     pub kernel_radius: Option<f64>,
     /// Ray-marching step (world units); default half the smallest voxel size.
     pub step: Option<f64>,
     /// Seed of every random stream.
     pub seed: u64,
-    /// Camera samples per pixel of the photon-mapping renderer (jittered).
+    /// Camera samples per pixel of the photon-mapping renderer (stratified).
     pub spp: u32,
     /// Samples per pixel of the reference path tracer.
     pub path_spp: u32,
@@ -51,14 +51,14 @@ pub struct RenderSettings {
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings { photons: 300_000, kernel_radius: None, step: None, seed: 0, spp: 1, path_spp: 256 }
+        RenderSettings { photons: 300_000, kernel_radius: None, step: None, seed: 0, spp: 4, path_spp: 256 }
     }
 }
 
 impl RenderSettings {
     /// The kernel radius to use on `density` (explicit or default).
     pub fn kernel_radius_for(&self, density: &Grid<f64>) -> f64 {
-        self.kernel_radius.unwrap_or_else(|| 2.0 * density.voxel_size().max())
+        self.kernel_radius.unwrap_or_else(|| 1.5 * density.voxel_size().max())
     }
 
     /// The ray-marching step to use on `density` (explicit or default).

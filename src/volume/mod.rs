@@ -2,6 +2,7 @@
 //! phase function, and where densities come from (plume, ScalarFlow).
 
 pub mod grid;
+pub mod hull;
 pub mod majorant;
 pub mod phase;
 
