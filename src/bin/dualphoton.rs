@@ -1,4 +1,4 @@
-//! The `dualphoton` command line: `render`, `grad` and `scene` (see `--help`).
+//! The `dualphoton` command line: `render`, `grad`, `fit` and `scene` (see `--help`).
 
 use clap::{Parser, Subcommand, ValueEnum};
 use dualphoton::error::{Error, Result};
@@ -6,6 +6,8 @@ use dualphoton::grad::forward::Directions;
 use dualphoton::grad::loss::mse;
 use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES};
 use dualphoton::io::{npy, png};
+use dualphoton::optim::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
+use dualphoton::optim::train::{LogRow, TrainSettings};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::{render_photon, Image};
@@ -113,6 +115,38 @@ enum Command {
         #[arg(long)]
         photons: Option<u64>,
     },
+    /// Reconstruct a density from images: visual hull, 64-d latent + small
+    /// decoder, Adam on the image MSE. Writes density_estimated.npy,
+    /// density_initial.npy, hull.npy, log.csv, fig5_loss.svg into OUT.
+    Fit {
+        /// Scene file: cameras, lights, medium; its density only fixes the grid (shape and box).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Directory with one image per camera: cam0.npy, cam1.npy, ...
+        #[arg(long)]
+        images: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Cameras held out from training (the last N of the scene).
+        #[arg(long, default_value_t = 0)]
+        held_out: usize,
+        /// fwd-full, fwd-rand, rev-sub or rev-full.
+        #[arg(long, default_value = "fwd-full")]
+        estimator: String,
+        /// Adam updates.
+        #[arg(long, default_value_t = 250)]
+        iterations: usize,
+        /// Photons per update.
+        #[arg(long, default_value_t = 100_000)]
+        photons: u64,
+        /// Seed of training.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// Write a built-in scene (scene.json + density.npy) to DIR.
     Scene {
         /// Which scene.
@@ -199,6 +233,33 @@ fn run(command: Command) -> Result<()> {
             let listed = voxels.map(|v| parse_voxels(&v, scene.density.shape)).transpose()?;
             let targets = read_targets(&target, &scene)?;
             grad_cmd(&scene, &targets, &opts, listed.as_deref(), &out)
+        }
+        Command::Fit { scene, images, out, held_out, estimator, iterations, photons, seed, threads } => {
+            set_threads(threads)?;
+            let scene = file::load(&scene)?;
+            let all = read_targets(&images, &scene)?;
+            if held_out >= scene.cameras.len() {
+                return Err(Error(format!("--held-out: {held_out} leaves no training camera of {}", scene.cameras.len())));
+            }
+            let (targets, held) = all.split_at(scene.cameras.len() - held_out);
+            std::fs::create_dir_all(&out).map_err(|e| Error(format!("--out: {e}")))?;
+            let settings = ReconstructSettings {
+                train: TrainSettings { iterations, estimator: estimator.parse()?, photons, seed, ..TrainSettings::default() },
+                final_photons: scene.render.photons,
+                final_spp: scene.render.spp,
+                init_seed: seed,
+            };
+            let start = std::time::Instant::now();
+            let mut progress = |row: &LogRow| {
+                let done = row.iteration + 1;
+                let t = start.elapsed().as_secs_f64();
+                eprint!("\riteration {done}/{iterations}  loss {:.4e}  {t:.0} s, ETA {:.0} s   ", row.train_loss, t / done as f64 * (iterations - done) as f64);
+            };
+            let r = reconstruct(&scene, targets, held, None, &settings, &out, &mut progress)?;
+            eprintln!();
+            write_outputs(&r, &scene, targets, held, None, &out)?;
+            eprintln!("fit: {} hull voxels, final loss {:.4e} -> {}", r.model.mask.iter().filter(|&&m| m).count(), r.log.last().map_or(0.0, |l| l.train_loss), out.display());
+            Ok(())
         }
         Command::Scene { preset: Preset::Paper, res, seed, from_scalarflow, out } => {
             if res == 0 || res > 512 {

@@ -4,3 +4,4 @@ pub mod manifest;
 pub mod npy;
 pub mod plot;
 pub mod png;
+pub mod figures;

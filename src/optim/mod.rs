@@ -1,4 +1,5 @@
-//! Learning the density: Adam and the training loop.
+//! Learning the density: Adam, the training loop, whole reconstructions.
 
 pub mod adam;
+pub mod reconstruct;
 pub mod train;

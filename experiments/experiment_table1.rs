@@ -1,0 +1,192 @@
+//! The main job (issue 4): reconstruct the built-in plume from the paper
+//! rig's four training cameras and regenerate Table 1 and Figs. 5-8 in
+//! `results/table1/` (`--out` to change). `--smoke` runs a tiny version.
+
+use clap::Parser;
+use dualphoton::error::{Error, Result};
+use dualphoton::grad::Estimator;
+use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::optim::reconstruct::{hull_stats, pearson, reconstruct, write_outputs, ReconstructSettings};
+use dualphoton::optim::train::{rel_l1, rel_rmse, TrainSettings, WeightDirections};
+use dualphoton::render::render_photon;
+use dualphoton::scene::{file, rig};
+use dualphoton::volume::plume::plume;
+use serde_json::json;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(about = "Reconstruct the built-in plume and regenerate the paper's Table 1 and Figs. 5-8")]
+struct Args {
+    /// Grid resolution (res^3) and image size (res x res); the paper used 128.
+    #[arg(long, default_value_t = 64)]
+    res: usize,
+    /// Seed of the plume, the renders and the model.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Adam updates.
+    #[arg(long, default_value_t = 250)]
+    iterations: usize,
+    /// Gradient estimator: fwd-full (default), fwd-rand, rev-sub (the paper's approximate learning), rev-full.
+    #[arg(long, default_value = "fwd-full")]
+    estimator: String,
+    /// Dual lanes per forward pass (1, 2, 4, 8, 16).
+    #[arg(long, default_value_t = 8)]
+    lanes: usize,
+    /// Forward-mode directions for the decoder weights per update.
+    #[arg(long, default_value_t = 16)]
+    weight_directions: usize,
+    /// How weight directions are chosen: orthonormal or coordinates.
+    #[arg(long, default_value = "orthonormal")]
+    weight_mode: String,
+    /// Adam step of the latent.
+    #[arg(long, default_value_t = 0.05)]
+    lr_latent: f64,
+    /// Adam step of the decoder weights.
+    #[arg(long, default_value_t = 0.01)]
+    lr_weights: f64,
+    /// Photons per training update.
+    #[arg(long, default_value_t = 100_000)]
+    photons: u64,
+    /// Camera samples per pixel per training update.
+    #[arg(long, default_value_t = 2)]
+    spp: u32,
+    /// Output directory.
+    #[arg(long, default_value = "results/table1")]
+    out: PathBuf,
+    /// A tiny run (16^3, few iterations) to check that everything works.
+    #[arg(long)]
+    smoke: bool,
+}
+
+/// The paper's Table 1 (mean / max density over the hull voxels).
+const PAPER: [(&str, f64, f64); 3] = [("before training", 0.0045, 0.0209), ("after training", 0.0417, 1.6234), ("ground truth", 0.0432, 1.3585)];
+
+fn main() -> std::process::ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(mut args: Args) -> Result<()> {
+    if args.smoke {
+        args.res = 16;
+        args.iterations = 3;
+        args.photons = 5_000;
+        args.weight_directions = 4;
+    }
+    let started = Instant::now();
+    std::fs::create_dir_all(&args.out)?;
+    let weight_mode = match args.weight_mode.as_str() {
+        "orthonormal" => WeightDirections::Orthonormal,
+        "coordinates" => WeightDirections::Coordinates,
+        m => return Err(Error(format!("--weight-mode: {m:?} is not orthonormal or coordinates"))),
+    };
+    let estimator: Estimator = args.estimator.parse()?;
+
+    // Ground truth and its images (more photons and samples than a training update).
+    let truth = plume(args.res, args.seed);
+    let mut scene = rig::paper_scene(truth.clone(), args.res);
+    scene.render.photons = if args.smoke { 20_000 } else { 1_000_000 };
+    scene.render.spp = 8;
+    scene.render.seed = args.seed.wrapping_add(4242);
+    file::save(&scene, &args.out, "scene")?;
+    eprintln!("rendering the ground truth ({} cameras, {} photons) ...", scene.cameras.len(), scene.render.photons);
+    let images = render_photon(&scene).images;
+    let (targets, held_out) = images.split_at(rig::HELD_OUT_CAMERA);
+
+    let settings = ReconstructSettings {
+        train: TrainSettings {
+            iterations: args.iterations,
+            estimator,
+            lanes: args.lanes,
+            weight_directions: args.weight_directions,
+            weight_mode,
+            lr_latent: args.lr_latent,
+            lr_weights: args.lr_weights,
+            photons: args.photons,
+            spp: args.spp,
+            seed: args.seed,
+            ..TrainSettings::default()
+        },
+        final_photons: scene.render.photons,
+        final_spp: scene.render.spp,
+        init_seed: args.seed,
+    };
+    let train_start = Instant::now();
+    let total = args.iterations;
+    let mut progress = |row: &dualphoton::optim::train::LogRow| {
+        let t = train_start.elapsed().as_secs_f64();
+        let done = row.iteration + 1;
+        eprint!(
+            "\riteration {done}/{total}  loss {:.4e}  held-out {:.4e}  eps {:.3}  {t:.0} s, ETA {:.0} s   ",
+            row.train_loss,
+            row.held_out_loss,
+            row.density_rel_l1,
+            t / done as f64 * (total - done) as f64
+        );
+    };
+    let r = reconstruct(&scene, targets, held_out, Some(&truth), &settings, &args.out, &mut progress)?;
+    eprintln!();
+    write_outputs(&r, &scene, targets, held_out, Some(&truth), &args.out)?;
+
+    // Table 1 and the error measures.
+    let mask = &r.model.mask;
+    let hull_voxels = mask.iter().filter(|&&m| m).count();
+    let rows = [hull_stats(&r.initial.data, mask), hull_stats(&r.estimated.data, mask), hull_stats(&truth.data, mask)];
+    let sum = |d: &[f64]| d.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| v).sum::<f64>();
+    let delta = (sum(&r.estimated.data) - sum(&truth.data)) / sum(&truth.data);
+    let eps = rel_l1(&r.estimated.data, &truth.data, mask);
+    let pr = pearson(&truth.data, &r.estimated.data, mask);
+    let held = rel_rmse(&r.final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data);
+    let mean_err = (rows[1].mean - rows[2].mean).abs() / rows[2].mean;
+    let max_err = (rows[1].max - rows[2].max).abs() / rows[2].max;
+    let mut csv = String::from("row,mean,max,paper_mean,paper_max\n");
+    let mut md = format!(
+        "# Table 1: density over the {hull_voxels} hull voxels ({}^3 grid; the paper kept 68,771 of 128^3)\n\n| | mean | max | paper mean | paper max |\n|---|---|---|---|---|\n",
+        args.res
+    );
+    for (s, (name, pm, px)) in rows.iter().zip(PAPER) {
+        let _ = writeln!(csv, "{name},{:.6},{:.6},{pm},{px}", s.mean, s.max);
+        let _ = writeln!(md, "| {name} | {:.4} | {:.4} | {pm} | {px} |", s.mean, s.max);
+    }
+    let _ = writeln!(
+        md,
+        "\n| measure | ours | target |\n|---|---|---|\n| mean-density error | {:.1} % | <= 2 % (paper 3.5 %) |\n| max-density error | {:.1} % | <= 10 % (paper 19.5 %) |\n\
+         | mass error delta | {:+.1} % | |\n| voxel relative L1 error epsilon | {eps:.3} | <= 0.3 |\n| Pearson r | {pr:.3} | >= 0.9 |\n\
+         | held-out camera 4 relative RMSE | {:.1} % | <= 5 % |\n\n\
+         Estimator `{}`, {} updates, {} photons and {} spp per update, decoder: {} parameters, latent 64. Wall time {:.0} s ({} threads).\n",
+        100.0 * mean_err,
+        100.0 * max_err,
+        100.0 * delta,
+        100.0 * held,
+        estimator.name(),
+        args.iterations,
+        args.photons,
+        args.spp,
+        r.model.decoder.param_count(),
+        started.elapsed().as_secs_f64(),
+        rayon::current_num_threads()
+    );
+    let _ = writeln!(csv, "mass_error_delta,{delta:.6},,,\nrel_l1_epsilon,{eps:.6},,,\npearson_r,{pr:.6},,,\nheld_out_rel_rmse,{held:.6},,,");
+    std::fs::write(args.out.join("table1.csv"), csv)?;
+    std::fs::write(args.out.join("table1.md"), &md)?;
+    write_json(
+        &args.out.join("manifest.json"),
+        &json!({
+            "seed": args.seed, "res": args.res, "iterations": args.iterations, "estimator": estimator.name(),
+            "lanes": args.lanes, "weight_directions": args.weight_directions, "weight_mode": args.weight_mode,
+            "lr_latent": args.lr_latent, "lr_weights": args.lr_weights, "photons": args.photons, "spp": args.spp,
+            "target_photons": scene.render.photons, "target_spp": scene.render.spp, "hull_voxels": hull_voxels,
+            "decoder": r.model.decoder.describe(), "decoder_parameters": r.model.decoder.param_count(),
+            "git": git_revision(), "wall_s": started.elapsed().as_secs_f64(), "threads": rayon::current_num_threads(),
+        }),
+    )?;
+    print!("{md}");
+    Ok(())
+}

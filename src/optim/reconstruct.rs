@@ -1,0 +1,166 @@
+//! A whole reconstruction: visual hull from the training images, a latent
+//! and decoder initialised inside it, training, and everything a reader
+//! needs to check the result, written into one directory.
+
+use super::train::{train, LogRow, Model, Problem, TrainSettings};
+use crate::error::{Error, Result};
+use crate::io::{figures, npy};
+use crate::model::Decoder;
+use crate::render::{render_photon, Image};
+use crate::rng::{Purpose, Rng};
+use crate::scene::Scene;
+use crate::volume::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
+use crate::volume::Grid;
+use std::io::Write as _;
+use std::path::Path;
+
+/// Iterations whose camera-2 image goes into Fig. 6 (the last one is added).
+pub const FIG6_ITERATIONS: [usize; 5] = [0, 10, 50, 100, 200];
+
+/// What a reconstruction produced.
+pub struct Reconstruction {
+    /// The trained model (its mask is the hull).
+    pub model: Model,
+    /// The density before training.
+    pub initial: Grid<f64>,
+    /// The density after training.
+    pub estimated: Grid<f64>,
+    /// The training log.
+    pub log: Vec<LogRow>,
+    /// Images of every camera rendered from the estimate (final quality).
+    pub final_images: Vec<Image>,
+    /// Camera-2 images at [`FIG6_ITERATIONS`] (iteration, image).
+    pub snapshots: Vec<(usize, Image)>,
+}
+
+/// Density statistics over the hull voxels.
+#[derive(Clone, Copy, Debug)]
+pub struct HullStats {
+    /// Mean density.
+    pub mean: f64,
+    /// Largest density.
+    pub max: f64,
+}
+
+/// Mean and max of `d` over the `mask` voxels.
+pub fn hull_stats(d: &[f64], mask: &[bool]) -> HullStats {
+    let v: Vec<f64> = d.iter().zip(mask).filter(|(_, &m)| m).map(|(x, _)| *x).collect();
+    HullStats { mean: v.iter().sum::<f64>() / v.len().max(1) as f64, max: v.iter().fold(0.0, |a: f64, &b| a.max(b)) }
+}
+
+/// Pearson correlation of `a` and `b` over the `mask` voxels.
+pub fn pearson(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
+    let idx: Vec<usize> = (0..a.len()).filter(|&i| mask[i]).collect();
+    let n = idx.len().max(1) as f64;
+    let (ma, mb) = (idx.iter().map(|&i| a[i]).sum::<f64>() / n, idx.iter().map(|&i| b[i]).sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for &i in &idx {
+        sab += (a[i] - ma) * (b[i] - mb);
+        saa += (a[i] - ma).powi(2);
+        sbb += (b[i] - mb).powi(2);
+    }
+    if saa == 0.0 || sbb == 0.0 {
+        0.0
+    } else {
+        sab / (saa * sbb).sqrt()
+    }
+}
+
+/// Settings of a reconstruction beyond training.
+#[derive(Clone, Debug)]
+pub struct ReconstructSettings {
+    /// Training.
+    pub train: TrainSettings,
+    /// Photons of the final renders.
+    pub final_photons: u64,
+    /// Samples per pixel of the final renders.
+    pub final_spp: u32,
+    /// Seed of the model's initial values.
+    pub init_seed: u64,
+}
+
+/// Reconstructs the density of `scene` (cameras `0..targets.len()` train,
+/// the rest are held out) from `targets` (+ `held_out` images), writing the
+/// log as it goes to `out/log.csv`.
+pub fn reconstruct(
+    scene: &Scene,
+    targets: &[Image],
+    held_out: &[Image],
+    truth: Option<&Grid<f64>>,
+    settings: &ReconstructSettings,
+    out: &Path,
+    progress: &mut dyn FnMut(&LogRow),
+) -> Result<Reconstruction> {
+    let n_train = targets.len();
+    let mask = visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
+    if !mask.iter().any(|&m| m) {
+        return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
+    }
+    let res = scene.density.shape[0];
+    if scene.density.shape != [res, res, res] {
+        return Err(Error(format!("volume.density: the decoder needs a cubic grid, got {:?}", scene.density.shape)));
+    }
+    let decoder = Decoder::paper_small(res);
+    let w = decoder.init(settings.init_seed);
+    let mut rng = Rng::new(settings.init_seed, Purpose::Scene, 7);
+    let z: Vec<f64> = (0..64).map(|_| rng.normal()).collect();
+    let mut model = Model { decoder, z, w, mask };
+    let initial = model.density(&scene.density);
+
+    let mut log = vec![];
+    let mut snapshots = vec![];
+    let mut csv = std::fs::File::create(out.join("log.csv")).map_err(|e| Error(format!("cannot write log.csv: {e}")))?;
+    writeln!(csv, "iteration,train_loss,held_out_loss,held_out_rel_rmse,density_rel_l1,mean_density,max_density,wall_s")?;
+    let last = settings.train.iterations.saturating_sub(1);
+    let problem = Problem { scene, targets, held_out, truth };
+    train(&problem, &mut model, &settings.train, &mut |row, _, images| {
+        let _ = writeln!(
+            csv,
+            "{},{:.9e},{:.9e},{:.6},{:.6},{:.6e},{:.6e},{:.3}",
+            row.iteration,
+            row.train_loss,
+            row.held_out_loss,
+            row.held_out_rel_rmse,
+            row.density_rel_l1,
+            row.mean_density,
+            row.max_density,
+            row.wall_s
+        );
+        if (FIG6_ITERATIONS.contains(&row.iteration) || row.iteration == last) && images.len() > 2 {
+            snapshots.push((row.iteration, images[2].clone()));
+        }
+        progress(row);
+        log.push(row.clone());
+    })?;
+    let estimated = model.density(&scene.density);
+    let mut final_scene = scene.clone();
+    final_scene.density = estimated.clone();
+    final_scene.render.photons = settings.final_photons;
+    final_scene.render.spp = settings.final_spp;
+    final_scene.render.seed = settings.train.seed.wrapping_add(777);
+    let final_images = render_photon(&final_scene).images;
+    Ok(Reconstruction { model, initial, estimated, log, final_images, snapshots })
+}
+
+/// Writes the arrays and figures of a reconstruction into `out`.
+pub fn write_outputs(r: &Reconstruction, scene: &Scene, targets: &[Image], held_out: &[Image], truth: Option<&Grid<f64>>, out: &Path) -> Result<()> {
+    let shape = &scene.density.shape;
+    npy::write_f32(&out.join("density_initial.npy"), shape, &r.initial.data)?;
+    npy::write_f32(&out.join("density_estimated.npy"), shape, &r.estimated.data)?;
+    npy::write_u8(&out.join("hull.npy"), shape, &r.model.mask.iter().map(|&m| m as u8).collect::<Vec<_>>())?;
+    if let Some(t) = truth {
+        npy::write_f32(&out.join("density_gt.npy"), shape, &t.data)?;
+        figures::density_scatter(&t.data, &r.initial.data, &r.estimated.data, &r.model.mask, &out.join("fig7_scatter.svg"))?;
+    }
+    figures::loss_curves(&out.join("log.csv"), &out.join("fig5_loss.svg"))?;
+    if targets.len() > 2 {
+        let white = crate::io::png::auto_white(&targets[2].data);
+        let mut strip: Vec<&Image> = r.snapshots.iter().map(|(_, i)| i).collect();
+        strip.push(&targets[2]);
+        figures::image_strip(&strip, white, &out.join("fig6_camera2.png"))?;
+    }
+    if let Some(h) = held_out.first() {
+        figures::held_out_panel(h, &r.final_images[targets.len()], &out.join("fig8_held_out.png"))?;
+    }
+    Ok(())
+}
