@@ -17,6 +17,7 @@ pub mod error;
 pub mod grad;
 pub mod io;
 pub mod math;
+pub mod model;
 pub mod render;
 pub mod rng;
 pub mod scene;
