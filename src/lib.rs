@@ -18,6 +18,7 @@ pub mod grad;
 pub mod io;
 pub mod math;
 pub mod model;
+pub mod optim;
 pub mod render;
 pub mod rng;
 pub mod scene;

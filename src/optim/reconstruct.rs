@@ -7,7 +7,6 @@ use crate::error::{Error, Result};
 use crate::io::{figures, npy};
 use crate::model::Decoder;
 use crate::render::{render_photon, Image};
-use crate::rng::{Purpose, Rng};
 use crate::scene::Scene;
 use crate::volume::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
 use crate::volume::Grid;
@@ -102,8 +101,7 @@ pub fn reconstruct(
     }
     let decoder = Decoder::paper_small(res);
     let w = decoder.init(settings.init_seed);
-    let mut rng = Rng::new(settings.init_seed, Purpose::Scene, 7);
-    let z: Vec<f64> = (0..64).map(|_| rng.normal()).collect();
+    let z = decoder.init_latent(settings.init_seed);
     let mut model = Model { decoder, z, w, mask };
     let initial = model.density(&scene.density);
 
