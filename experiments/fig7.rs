@@ -16,7 +16,8 @@ struct Args {
 
 fn run(args: &Args) -> Result<()> {
     let read = |name: &str| npy::read(&args.dir.join(name), name);
-    let (gt, before, after, hull) = (read("density_gt.npy")?, read("density_initial.npy")?, read("density_estimated.npy")?, read("hull.npy")?);
+    let (gt, before, after, hull) =
+        (read("density_gt.npy")?, read("density_initial.npy")?, read("density_estimated.npy")?, read("hull.npy")?);
     if [&before, &after, &hull].iter().any(|a| a.shape != gt.shape) {
         return Err(Error::new("the saved arrays do not share one shape"));
     }

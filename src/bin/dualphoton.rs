@@ -138,7 +138,7 @@ enum Command {
         #[arg(long, default_value_t = 250)]
         iterations: usize,
         /// Photons per update.
-        #[arg(long, default_value_t = 100_000)]
+        #[arg(long, default_value_t = 50_000)]
         photons: u64,
         /// Seed of training.
         #[arg(long, default_value_t = 0)]
@@ -239,12 +239,21 @@ fn run(command: Command) -> Result<()> {
             let scene = file::load(&scene)?;
             let all = read_targets(&images, &scene)?;
             if held_out >= scene.cameras.len() {
-                return Err(Error(format!("--held-out: {held_out} leaves no training camera of {}", scene.cameras.len())));
+                return Err(Error(format!(
+                    "--held-out: {held_out} leaves no training camera of {}",
+                    scene.cameras.len()
+                )));
             }
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
             std::fs::create_dir_all(&out).map_err(|e| Error(format!("--out: {e}")))?;
             let settings = ReconstructSettings {
-                train: TrainSettings { iterations, estimator: estimator.parse()?, photons, seed, ..TrainSettings::default() },
+                train: TrainSettings {
+                    iterations,
+                    estimator: estimator.parse()?,
+                    photons,
+                    seed,
+                    ..TrainSettings::default()
+                },
                 final_photons: scene.render.photons,
                 final_spp: scene.render.spp,
                 init_seed: seed,
@@ -253,12 +262,21 @@ fn run(command: Command) -> Result<()> {
             let mut progress = |row: &LogRow| {
                 let done = row.iteration + 1;
                 let t = start.elapsed().as_secs_f64();
-                eprint!("\riteration {done}/{iterations}  loss {:.4e}  {t:.0} s, ETA {:.0} s   ", row.train_loss, t / done as f64 * (iterations - done) as f64);
+                eprint!(
+                    "\riteration {done}/{iterations}  loss {:.4e}  {t:.0} s, ETA {:.0} s   ",
+                    row.train_loss,
+                    t / done as f64 * (iterations - done) as f64
+                );
             };
             let r = reconstruct(&scene, targets, held, None, &settings, &out, &mut progress)?;
             eprintln!();
             write_outputs(&r, &scene, targets, held, None, &out)?;
-            eprintln!("fit: {} hull voxels, final loss {:.4e} -> {}", r.model.mask.iter().filter(|&&m| m).count(), r.log.last().map_or(0.0, |l| l.train_loss), out.display());
+            eprintln!(
+                "fit: {} hull voxels, final loss {:.4e} -> {}",
+                r.model.mask.iter().filter(|&&m| m).count(),
+                r.log.last().map_or(0.0, |l| l.train_loss),
+                out.display()
+            );
             Ok(())
         }
         Command::Scene { preset: Preset::Paper, res, seed, from_scalarflow, out } => {

@@ -13,7 +13,9 @@ use std::path::Path;
 pub fn loss_curves(log_csv: &Path, out: &Path) -> Result<()> {
     let mut reader = csv::Reader::from_path(log_csv).map_err(|e| Error(format!("{}: {e}", log_csv.display())))?;
     let headers = reader.headers().map_err(|e| Error(e.to_string()))?.clone();
-    let col = |name: &str| headers.iter().position(|h| h == name).ok_or_else(|| Error(format!("{}: no column {name}", log_csv.display())));
+    let col = |name: &str| {
+        headers.iter().position(|h| h == name).ok_or_else(|| Error(format!("{}: no column {name}", log_csv.display())))
+    };
     let (ci, ct, ch) = (col("iteration")?, col("train_loss")?, col("held_out_loss")?);
     let (mut train, mut held) = (vec![], vec![]);
     for record in reader.records() {

@@ -703,8 +703,10 @@ mod tests {
 
     /// Dual64 forward with tangent 1 on coordinate `i` of z (`on_z`) or w.
     fn dual_forward(d: &Decoder, z: &[f64], w: &[f64], mask: &[bool], on_z: bool, i: usize) -> Vec<f64> {
-        let dz: Vec<Dual64> = z.iter().enumerate().map(|(k, &v)| Dual64::new(v, (on_z && k == i) as u8 as f64)).collect();
-        let dw: Vec<Dual64> = w.iter().enumerate().map(|(k, &v)| Dual64::new(v, (!on_z && k == i) as u8 as f64)).collect();
+        let dz: Vec<Dual64> =
+            z.iter().enumerate().map(|(k, &v)| Dual64::new(v, (on_z && k == i) as u8 as f64)).collect();
+        let dw: Vec<Dual64> =
+            w.iter().enumerate().map(|(k, &v)| Dual64::new(v, (!on_z && k == i) as u8 as f64)).collect();
         d.forward(&dz, &dw, mask).iter().map(|x| x.eps).collect()
     }
 
@@ -724,7 +726,8 @@ mod tests {
         let d = Decoder::paper_small(16);
         let (z, w) = (d.init_latent(11), d.init(11));
         let mask = ball(16, 6.5);
-        let cases: Vec<(bool, usize)> = [(true, 0), (true, 17)].into_iter().chain(w_coords(&d).into_iter().map(|i| (false, i))).collect();
+        let cases: Vec<(bool, usize)> =
+            [(true, 0), (true, 17)].into_iter().chain(w_coords(&d).into_iter().map(|i| (false, i))).collect();
         for (on_z, i) in cases {
             let tangent = dual_forward(&d, &z, &w, &mask, on_z, i);
             // The decoder is piecewise linear in each coordinate: central differences
@@ -733,7 +736,11 @@ mod tests {
             let h = 1e-4;
             let eval = |s: f64| {
                 let (mut z2, mut w2) = (z.clone(), w.clone());
-                if on_z { z2[i] += s } else { w2[i] += s }
+                if on_z {
+                    z2[i] += s
+                } else {
+                    w2[i] += s
+                }
                 d.forward(&z2, &w2, &mask)
             };
             let (p, m) = (eval(h), eval(-h));
@@ -862,7 +869,13 @@ mod tests {
             let zd: Vec<DualSVec64<8>> = z
                 .iter()
                 .enumerate()
-                .map(|(i, &v)| if i < 8 { with_tangents(v, std::array::from_fn(|k| (k == i) as u8 as f64)) } else { DualSVec64::cst(v) })
+                .map(|(i, &v)| {
+                    if i < 8 {
+                        with_tangents(v, std::array::from_fn(|k| (k == i) as u8 as f64))
+                    } else {
+                        DualSVec64::cst(v)
+                    }
+                })
                 .collect();
             let wd: Vec<DualSVec64<8>> = w.iter().map(|&v| DualSVec64::cst(v)).collect();
             let g = normals(1, res * res * res);

@@ -91,7 +91,8 @@ pub fn reconstruct(
     progress: &mut dyn FnMut(&LogRow),
 ) -> Result<Reconstruction> {
     let n_train = targets.len();
-    let mask = visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
+    let mask =
+        visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
     if !mask.iter().any(|&m| m) {
         return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
     }
@@ -107,8 +108,12 @@ pub fn reconstruct(
 
     let mut log = vec![];
     let mut snapshots = vec![];
-    let mut csv = std::fs::File::create(out.join("log.csv")).map_err(|e| Error(format!("cannot write log.csv: {e}")))?;
-    writeln!(csv, "iteration,train_loss,held_out_loss,held_out_rel_rmse,density_rel_l1,mean_density,max_density,wall_s")?;
+    let mut csv =
+        std::fs::File::create(out.join("log.csv")).map_err(|e| Error(format!("cannot write log.csv: {e}")))?;
+    writeln!(
+        csv,
+        "iteration,train_loss,held_out_loss,held_out_rel_rmse,density_rel_l1,mean_density,max_density,wall_s"
+    )?;
     let last = settings.train.iterations.saturating_sub(1);
     let problem = Problem { scene, targets, held_out, truth };
     train(&problem, &mut model, &settings.train, &mut |row, _, images| {
@@ -125,7 +130,7 @@ pub fn reconstruct(
             row.wall_s
         );
         if (FIG6_ITERATIONS.contains(&row.iteration) || row.iteration == last) && images.len() > 2 {
-            snapshots.push((row.iteration, images[2].clone()));
+            snapshots.push((row.iteration, upscale(&images[2], targets[2].width)));
         }
         progress(row);
         log.push(row.clone());
@@ -141,14 +146,27 @@ pub fn reconstruct(
 }
 
 /// Writes the arrays and figures of a reconstruction into `out`.
-pub fn write_outputs(r: &Reconstruction, scene: &Scene, targets: &[Image], held_out: &[Image], truth: Option<&Grid<f64>>, out: &Path) -> Result<()> {
+pub fn write_outputs(
+    r: &Reconstruction,
+    scene: &Scene,
+    targets: &[Image],
+    held_out: &[Image],
+    truth: Option<&Grid<f64>>,
+    out: &Path,
+) -> Result<()> {
     let shape = &scene.density.shape;
     npy::write_f32(&out.join("density_initial.npy"), shape, &r.initial.data)?;
     npy::write_f32(&out.join("density_estimated.npy"), shape, &r.estimated.data)?;
     npy::write_u8(&out.join("hull.npy"), shape, &r.model.mask.iter().map(|&m| m as u8).collect::<Vec<_>>())?;
     if let Some(t) = truth {
         npy::write_f32(&out.join("density_gt.npy"), shape, &t.data)?;
-        figures::density_scatter(&t.data, &r.initial.data, &r.estimated.data, &r.model.mask, &out.join("fig7_scatter.svg"))?;
+        figures::density_scatter(
+            &t.data,
+            &r.initial.data,
+            &r.estimated.data,
+            &r.model.mask,
+            &out.join("fig7_scatter.svg"),
+        )?;
     }
     figures::loss_curves(&out.join("log.csv"), &out.join("fig5_loss.svg"))?;
     if targets.len() > 2 {
@@ -161,4 +179,12 @@ pub fn write_outputs(r: &Reconstruction, scene: &Scene, targets: &[Image], held_
         figures::held_out_panel(h, &r.final_images[targets.len()], &out.join("fig8_held_out.png"))?;
     }
     Ok(())
+}
+
+/// `im` enlarged by pixel replication to `width` (a coarse update's image next to full-size ones).
+fn upscale(im: &Image, width: usize) -> Image {
+    let f = (width / im.width.max(1)).max(1);
+    let (w, h) = (im.width * f, im.height * f);
+    let data = (0..w * h).map(|p| im.data[(p / w / f) * im.width + (p % w) / f]).collect();
+    Image { width: w, height: h, data }
 }

@@ -15,6 +15,7 @@
 //!   vector-Jacobian product: exact (or unbiased) for latent and weights.
 
 use crate::ad::dual::with_tangents;
+use crate::ad::Real;
 use crate::error::Result;
 use crate::grad::forward::{directional, random_directions, Directions};
 use crate::grad::loss::mse;
@@ -67,6 +68,9 @@ pub struct TrainSettings {
     pub subset_paths: usize,
     /// Seed of everything random in training.
     pub seed: u64,
+    /// Share of the updates made at half resolution (grid and images pooled
+    /// 2x) before the full resolution: coarse to fine, about 6x cheaper per update.
+    pub coarse_fraction: f64,
 }
 
 impl Default for TrainSettings {
@@ -75,15 +79,16 @@ impl Default for TrainSettings {
             iterations: 250,
             estimator: Estimator::FwdFull,
             lanes: 8,
-            weight_directions: 16,
+            weight_directions: 8,
             weight_mode: WeightDirections::Orthonormal,
             lr_latent: 0.05,
             lr_weights: 0.01,
-            photons: 100_000,
+            photons: 50_000,
             spp: 2,
             subset_pixels: 1000,
             subset_paths: 5000,
             seed: 0,
+            coarse_fraction: 0.8,
         }
     }
 }
@@ -102,6 +107,12 @@ pub struct Model {
 }
 
 impl Model {
+    /// Shape of the decoder's grid.
+    pub fn decoder_shape(&self) -> [usize; 3] {
+        let r = self.decoder.res();
+        [r, r, r]
+    }
+
     /// The density grid on `like`'s geometry.
     pub fn density(&self, like: &Grid<f64>) -> Grid<f64> {
         Grid::new(like.lo, like.hi, like.shape, self.decoder.forward(&self.z, &self.w, &self.mask))
@@ -168,48 +179,175 @@ pub fn rel_rmse(ours: &[f64], reference: &[f64]) -> f64 {
     }
 }
 
+/// One resolution the loop renders at.
+struct Level {
+    /// Scene at this resolution (its density is replaced every update).
+    scene: Scene,
+    /// Training targets at this resolution.
+    targets: Vec<Image>,
+    /// Held-out targets at this resolution.
+    held_out: Vec<Image>,
+    /// True if densities are the decoder's grid averaged over 2x2x2 blocks.
+    pooled: bool,
+    /// Where the density may be non-zero (the hull, pooled like the density).
+    support: Grid<f64>,
+}
+
+impl Level {
+    fn full(problem: &Problem, mask: &[bool]) -> Level {
+        let d = &problem.scene.density;
+        let support = Grid::new(d.lo, d.hi, d.shape, mask.iter().map(|&m| f64::from(u8::from(m))).collect());
+        Level {
+            scene: problem.scene.clone(),
+            targets: problem.targets.to_vec(),
+            held_out: problem.held_out.to_vec(),
+            pooled: false,
+            support,
+        }
+    }
+
+    /// Half resolution, or `None` if a grid or image edge is odd or too small.
+    fn half(problem: &Problem, mask: &[bool]) -> Option<Level> {
+        let full = Level::full(problem, mask);
+        let even = |n: usize| n % 2 == 0 && n >= 8;
+        if !full.scene.density.shape.iter().all(|&n| even(n))
+            || !full.scene.cameras.iter().all(|c| even(c.width) && even(c.height))
+        {
+            return None;
+        }
+        let mut scene = full.scene.clone();
+        scene.density = pool(&full.scene.density);
+        for c in &mut scene.cameras {
+            c.width /= 2;
+            c.height /= 2;
+        }
+        let support = pool(&full.support);
+        Some(Level {
+            scene,
+            targets: full.targets.iter().map(halve).collect(),
+            held_out: full.held_out.iter().map(halve).collect(),
+            pooled: true,
+            support,
+        })
+    }
+
+    /// The density this level renders, from the decoder's grid values.
+    fn grid<R: Real>(&self, fine: Grid<R>) -> Grid<R> {
+        if self.pooled {
+            pool(&fine)
+        } else {
+            fine
+        }
+    }
+
+    /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.
+    fn pull_back(&self, grad: Vec<f64>, fine_shape: [usize; 3]) -> Vec<f64> {
+        if !self.pooled {
+            return grad;
+        }
+        let [nz, ny, nx] = fine_shape;
+        let (cy, cx) = (ny / 2, nx / 2);
+        let mut out = vec![0.0; nz * ny * nx];
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    out[(k * ny + j) * nx + i] = grad[((k / 2) * cy + j / 2) * cx + i / 2] * 0.125;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The 2x2x2 block means of an even-shaped grid (same box).
+pub fn pool<R: Real>(g: &Grid<R>) -> Grid<R> {
+    let [nz, ny, nx] = g.shape;
+    let (cz, cy, cx) = (nz / 2, ny / 2, nx / 2);
+    let mut data = Vec::with_capacity(cz * cy * cx);
+    for k in 0..cz {
+        for j in 0..cy {
+            for i in 0..cx {
+                let mut s = R::cst(0.0);
+                for c in 0..8 {
+                    s += g.data[g.index(2 * k + (c >> 2), 2 * j + ((c >> 1) & 1), 2 * i + (c & 1))];
+                }
+                data.push(s * 0.125);
+            }
+        }
+    }
+    Grid::new(g.lo, g.hi, [cz, cy, cx], data)
+}
+
+/// The 2x2 block means of an even-sized image: what a camera of half the resolution sees.
+pub fn halve(im: &Image) -> Image {
+    let (w, h) = (im.width / 2, im.height / 2);
+    let mut data = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let at = |dx: usize, dy: usize| im.data[(2 * y + dy) * im.width + 2 * x + dx];
+            data.push(0.25 * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)));
+        }
+    }
+    Image { width: w, height: h, data }
+}
+
 /// Trains `model` in place; `observe(row, model, images)` sees every log row
 /// with the model before the update and this update's rendered images.
-pub fn train(problem: &Problem, model: &mut Model, settings: &TrainSettings, observe: &mut dyn FnMut(&LogRow, &Model, &[Image])) -> Result<()> {
+pub fn train(
+    problem: &Problem,
+    model: &mut Model,
+    settings: &TrainSettings,
+    observe: &mut dyn FnMut(&LogRow, &Model, &[Image]),
+) -> Result<()> {
     let start = Instant::now();
     let mut adam_z = Adam::new(model.z.len(), settings.lr_latent);
     let mut adam_w = Adam::new(model.w.len(), settings.lr_weights);
-    let support = Grid::new(
-        problem.scene.density.lo,
-        problem.scene.density.hi,
-        problem.scene.density.shape,
-        model.mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect(),
-    );
+    let fine = Level::full(problem, &model.mask);
+    let coarse = if settings.coarse_fraction > 0.0 { Level::half(problem, &model.mask) } else { None };
+    let coarse_updates = (settings.coarse_fraction.clamp(0.0, 1.0) * settings.iterations as f64).round() as usize;
     let mut rng = Rng::new(settings.seed, Purpose::Gradient, 1_000_000);
     let mut next_weight = 0usize;
     for it in 0..settings.iterations {
-        let mut scene = problem.scene.clone();
-        scene.density = model.density(&problem.scene.density);
+        let level = match &coarse {
+            Some(c) if it < coarse_updates => c,
+            _ => &fine,
+        };
+        let decoded = model.density(&problem.scene.density);
+        let mut scene = level.scene.clone();
+        scene.density = level.grid(decoded.clone());
         scene.render.photons = settings.photons;
         scene.render.spp = settings.spp;
         scene.render.seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
-        let frozen = Frozen::new(&scene, Some(&support));
-        let row = log_row(it, problem, model, &frozen, start.elapsed().as_secs_f64());
+        let frozen = Frozen::new(&scene, Some(&level.support));
+        let row = log_row(it, problem, level, model, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
-        let (gz, gw) = gradient(problem, model, &frozen, settings, &mut rng, &mut next_weight)?;
+        let (gz, gw) = gradient(level, model, &frozen, settings, &mut rng, &mut next_weight)?;
         adam_z.step_sparse(&mut model.z, &gz.0, &gz.1);
         adam_w.step_sparse(&mut model.w, &gw.0, &gw.1);
     }
     Ok(())
 }
 
-fn log_row(it: usize, problem: &Problem, model: &Model, frozen: &Frozen, wall_s: f64) -> LogRow {
-    let n = problem.targets.len();
+fn log_row(
+    it: usize,
+    problem: &Problem,
+    level: &Level,
+    model: &Model,
+    decoded: &Grid<f64>,
+    frozen: &Frozen,
+    wall_s: f64,
+) -> LogRow {
+    let n = level.targets.len();
     let images: Vec<Vec<f64>> = frozen.images.iter().map(|i| i.data.clone()).collect();
-    let train_loss = mse(&images[..n], problem.targets);
-    let (held_out_loss, held_out_rel_rmse) = if problem.held_out.is_empty() {
+    let train_loss = mse(&images[..n], &level.targets);
+    let (held_out_loss, held_out_rel_rmse) = if level.held_out.is_empty() {
         (0.0, 0.0)
     } else {
         let ours: Vec<f64> = images[n..].iter().flatten().copied().collect();
-        let theirs: Vec<f64> = problem.held_out.iter().flat_map(|i| i.data.iter().copied()).collect();
-        (mse(&images[n..], problem.held_out), rel_rmse(&ours, &theirs))
+        let theirs: Vec<f64> = level.held_out.iter().flat_map(|i| i.data.iter().copied()).collect();
+        (mse(&images[n..], &level.held_out), rel_rmse(&ours, &theirs))
     };
-    let d = &frozen.scene.density.data;
+    let d = &decoded.data;
     let hull: Vec<f64> = d.iter().zip(&model.mask).filter(|(_, &m)| m).map(|(v, _)| *v).collect();
     LogRow {
         iteration: it,
@@ -227,7 +365,7 @@ fn log_row(it: usize, problem: &Problem, model: &Model, frozen: &Frozen, wall_s:
 type Sparse = (Vec<usize>, Vec<f64>);
 
 fn gradient(
-    problem: &Problem,
+    level: &Level,
     model: &Model,
     frozen: &Frozen,
     settings: &TrainSettings,
@@ -240,18 +378,24 @@ fn gradient(
             let subset = if settings.estimator == Estimator::RevFull {
                 Subset::full()
             } else {
-                Subset { pixels: Some(settings.subset_pixels), paths: Some(settings.subset_paths), seed: rng.below(u64::MAX) }
+                Subset {
+                    pixels: Some(settings.subset_pixels),
+                    paths: Some(settings.subset_paths),
+                    seed: rng.below(u64::MAX),
+                }
             };
-            let g = reverse_gradient(frozen, problem.targets, subset).grad;
+            let g = reverse_gradient(frozen, &level.targets, subset).grad;
+            let g = level.pull_back(g, model.decoder_shape());
             let (dz, dw) = model.decoder.backward(&model.z, &model.w, &model.mask, &g);
             Ok(((all(dz.len()), dz), (all(dw.len()), dw)))
         }
         Estimator::FwdFull => {
-            let dz = crate::with_lanes!(settings.lanes, latent_gradient(problem, model, frozen));
+            let dz = crate::with_lanes!(settings.lanes, latent_gradient(level, model, frozen));
             let gw = match settings.weight_mode {
                 WeightDirections::Coordinates => {
                     let n = model.w.len();
-                    let idx: Vec<usize> = (0..settings.weight_directions.min(n)).map(|k| (*next_weight + k) % n).collect();
+                    let idx: Vec<usize> =
+                        (0..settings.weight_directions.min(n)).map(|k| (*next_weight + k) % n).collect();
                     *next_weight = (*next_weight + idx.len()) % n.max(1);
                     let dirs: Vec<Vec<f64>> = idx
                         .iter()
@@ -261,28 +405,37 @@ fn gradient(
                             e
                         })
                         .collect();
-                    let d = weight_derivatives(problem, model, frozen, &dirs, settings.lanes)?;
+                    let d = weight_derivatives(level, model, frozen, &dirs, settings.lanes)?;
                     (idx, d)
                 }
-                WeightDirections::Orthonormal => random_weight_gradient(problem, model, frozen, settings, Directions::Orthonormal, rng)?,
+                WeightDirections::Orthonormal => {
+                    random_weight_gradient(level, model, frozen, settings, Directions::Orthonormal, rng)?
+                }
             };
             Ok(((all(dz.len()), dz), gw))
         }
         Estimator::FwdRand => {
-            let dz = random_latent_gradient(problem, model, frozen, settings, rng)?;
-            let gw = random_weight_gradient(problem, model, frozen, settings, Directions::Gaussian, rng)?;
+            let dz = random_latent_gradient(level, model, frozen, settings, rng)?;
+            let gw = random_weight_gradient(level, model, frozen, settings, Directions::Gaussian, rng)?;
             Ok(((all(dz.len()), dz), gw))
         }
     }
 }
 
-/// The decoder's output with K tangents, as a grid for the renderer.
-fn tangent_grid<const K: usize>(model: &Model, like: &Grid<f64>, z: &[DualSVec64<K>], w: &[DualSVec64<K>]) -> Grid<DualSVec64<K>> {
-    Grid::new(like.lo, like.hi, like.shape, model.decoder.forward(z, w, &model.mask))
+/// The decoder's output with K tangents, as the level's grid for the renderer.
+fn tangent_grid<const K: usize>(
+    level: &Level,
+    model: &Model,
+    z: &[DualSVec64<K>],
+    w: &[DualSVec64<K>],
+) -> Grid<DualSVec64<K>> {
+    let d = &level.scene.density;
+    let shape = model.decoder_shape();
+    level.grid(Grid::new(d.lo, d.hi, shape, model.decoder.forward(z, w, &model.mask)))
 }
 
 /// Exact `dL/dz` from all latent coordinates, K per pass.
-fn latent_gradient<const K: usize>(problem: &Problem, model: &Model, frozen: &Frozen) -> Vec<f64> {
+fn latent_gradient<const K: usize>(level: &Level, model: &Model, frozen: &Frozen) -> Vec<f64> {
     let n = model.z.len();
     let w: Vec<DualSVec64<K>> = model.w.iter().map(|&v| DualSVec64::from_re(v)).collect();
     let mut grad = Vec::with_capacity(n);
@@ -298,40 +451,53 @@ fn latent_gradient<const K: usize>(problem: &Problem, model: &Model, frozen: &Fr
                 }
             })
             .collect();
-        let density = tangent_grid(model, &frozen.scene.density, &z, &w);
-        let (_, d) = directional(frozen, &density, problem.targets);
+        let density = tangent_grid(level, model, &z, &w);
+        let (_, d) = directional(frozen, &density, &level.targets);
         grad.extend_from_slice(&d[..K.min(n - first)]);
     }
     grad
 }
 
 /// Directional derivatives of the loss along weight-space directions `dirs`.
-fn weight_derivatives(problem: &Problem, model: &Model, frozen: &Frozen, dirs: &[Vec<f64>], lanes: usize) -> Result<Vec<f64>> {
-    fn pass<const K: usize>(problem: &Problem, model: &Model, frozen: &Frozen, dirs: &[Vec<f64>]) -> Vec<f64> {
+fn weight_derivatives(
+    level: &Level,
+    model: &Model,
+    frozen: &Frozen,
+    dirs: &[Vec<f64>],
+    lanes: usize,
+) -> Result<Vec<f64>> {
+    fn pass<const K: usize>(level: &Level, model: &Model, frozen: &Frozen, dirs: &[Vec<f64>]) -> Vec<f64> {
         let z: Vec<DualSVec64<K>> = model.z.iter().map(|&v| DualSVec64::from_re(v)).collect();
         let mut out = vec![];
         for chunk in dirs.chunks(K) {
             let w: Vec<DualSVec64<K>> = (0..model.w.len())
                 .map(|i| with_tangents(model.w[i], std::array::from_fn(|k| chunk.get(k).map_or(0.0, |d| d[i]))))
                 .collect();
-            let density = tangent_grid(model, &frozen.scene.density, &z, &w);
-            let (_, d) = directional(frozen, &density, problem.targets);
+            let density = tangent_grid(level, model, &z, &w);
+            let (_, d) = directional(frozen, &density, &level.targets);
             out.extend_from_slice(&d[..chunk.len()]);
         }
         out
     }
-    Ok(crate::with_lanes!(lanes, pass(problem, model, frozen, dirs)))
+    Ok(crate::with_lanes!(lanes, pass(level, model, frozen, dirs)))
 }
 
 /// A random-direction estimate of `dL/dw` from `weight_directions` directions.
-fn random_weight_gradient(problem: &Problem, model: &Model, frozen: &Frozen, settings: &TrainSettings, kind: Directions, rng: &mut Rng) -> Result<Sparse> {
+fn random_weight_gradient(
+    level: &Level,
+    model: &Model,
+    frozen: &Frozen,
+    settings: &TrainSettings,
+    kind: Directions,
+    rng: &mut Rng,
+) -> Result<Sparse> {
     let n = model.w.len();
     let k = settings.weight_directions.min(n);
     if k == 0 {
         return Ok((vec![], vec![]));
     }
     let (dirs, factor) = directions(n, k, kind, rng);
-    let d = weight_derivatives(problem, model, frozen, &dirs, settings.lanes)?;
+    let d = weight_derivatives(level, model, frozen, &dirs, settings.lanes)?;
     let mut g = vec![0.0; n];
     for (dk, dir) in d.iter().zip(&dirs) {
         g.iter_mut().zip(dir).for_each(|(a, b)| *a += factor * dk * b);
@@ -355,15 +521,22 @@ fn directions(n: usize, k: usize, kind: Directions, rng: &mut Rng) -> (Vec<Vec<f
 }
 
 /// `fwd-rand` for the latent: K Gaussian directions.
-fn random_latent_gradient(problem: &Problem, model: &Model, frozen: &Frozen, settings: &TrainSettings, rng: &mut Rng) -> Result<Vec<f64>> {
-    fn pass<const K: usize>(problem: &Problem, model: &Model, frozen: &Frozen, rng: &mut Rng) -> Vec<f64> {
+fn random_latent_gradient(
+    level: &Level,
+    model: &Model,
+    frozen: &Frozen,
+    settings: &TrainSettings,
+    rng: &mut Rng,
+) -> Result<Vec<f64>> {
+    fn pass<const K: usize>(level: &Level, model: &Model, frozen: &Frozen, rng: &mut Rng) -> Vec<f64> {
         let n = model.z.len();
         let (dirs, factor) = random_directions::<K>(n, Directions::Gaussian, rng);
-        let z: Vec<DualSVec64<K>> = (0..n).map(|i| with_tangents(model.z[i], std::array::from_fn(|k| dirs[k][i]))).collect();
+        let z: Vec<DualSVec64<K>> =
+            (0..n).map(|i| with_tangents(model.z[i], std::array::from_fn(|k| dirs[k][i]))).collect();
         let w: Vec<DualSVec64<K>> = model.w.iter().map(|&v| DualSVec64::from_re(v)).collect();
-        let density = tangent_grid(model, &frozen.scene.density, &z, &w);
-        let (_, d) = directional(frozen, &density, problem.targets);
+        let density = tangent_grid(level, model, &z, &w);
+        let (_, d) = directional(frozen, &density, &level.targets);
         (0..n).map(|i| factor * (0..K).map(|k| d[k] * dirs[k][i]).sum::<f64>()).collect()
     }
-    Ok(crate::with_lanes!(settings.lanes, pass(problem, model, frozen, rng)))
+    Ok(crate::with_lanes!(settings.lanes, pass(level, model, frozen, rng)))
 }
