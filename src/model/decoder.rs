@@ -15,10 +15,15 @@
 //!
 //! Work is saved in two exact ways: the last layer is evaluated only at
 //! masked-in voxels, and every earlier layer only at the voxels some later
-//! needed voxel reads (the mask pulled back through the kernel footprints).
-//! Every value is computed by one task in a fixed order, so results do not
-//! depend on the number of threads. Generic code never divides two `R`s, so
-//! the primal of every dual type is bit-identical to the `f64` forward.
+//! evaluated voxel reads (the mask pulled back through the kernel
+//! footprints); each grid is stored compactly at just those voxels. Every
+//! value is computed by one task in a fixed order, so results do not depend
+//! on the number of threads. Generic code never divides two `R`s, so the
+//! primal of every dual type is bit-identical to the `f64` forward.
+//!
+//! Meant for `f64` and the dual types. Not for the tape type `Var`: the
+//! forward pass runs on rayon workers and each thread has its own tape;
+//! reverse mode is [`Decoder::backward`].
 
 use crate::ad::Real;
 use crate::bail;
@@ -31,15 +36,17 @@ pub const BASE: usize = 4;
 /// Negative slope of the LeakyReLU after the linear layer and every
 /// transposed convolution but the last.
 pub const LEAKY_SLOPE: f64 = 0.2;
-/// Density per unit of the last layer's ReLU output (1/length units of the
-/// density). With [`LAST_BIAS`] it sets the initial density ~0.005.
+/// Density (extinction, per unit length) per unit of the last layer's ReLU
+/// output. With [`LAST_BIAS`] it sets the initial density, ~0.005.
 pub const OUT_SCALE: f64 = 0.01;
 /// Initial bias of the last layer: keeps its pre-activation positive at
 /// the start, so that the ReLU passes gradient at almost every voxel.
 pub const LAST_BIAS: f64 = 0.5;
 /// Initial weight std of the last layer relative to He (`sqrt(2 / fan_in)`):
-/// the pre-activation noise (~0.2) stays small against [`LAST_BIAS`].
-const LAST_GAIN: f64 = 0.15;
+/// the pre-activation noise (~0.15) stays small against [`LAST_BIAS`], so
+/// over a ball-shaped mask 98-100% of the voxels start positive (res 32 to
+/// 128, 8 seeds), mean ~0.005, max 0.01-0.024 (the paper: 0.0045, 0.0209).
+const LAST_GAIN: f64 = 0.12;
 /// Kernel taps per transposed convolution (4 x 4 x 4).
 const TAPS: usize = 64;
 /// Stream index (under `Purpose::Scene`) of the linear layer's weights;
@@ -111,7 +118,7 @@ impl Act {
 #[inline]
 fn taps(o: usize, n: usize) -> ([(usize, usize); 2], usize) {
     let m = o / 2;
-    if o % 2 == 0 {
+    if o.is_multiple_of(2) {
         // o = 2m: k = 1 at i = m, k = 3 at i = m - 1.
         if m == 0 {
             ([(0, 1), (0, 0)], 1)
@@ -142,76 +149,162 @@ fn outs(i: usize, m: usize) -> ([(usize, usize); 4], usize) {
     (r, c)
 }
 
-/// Output-centric transposed convolution of `input` (edge `n`, `c_in`
-/// channels) into a new grid of edge `2n`, evaluated only where `need` (edge
-/// `2n`) is true and 0 elsewhere; `act` applied to every evaluated value.
-fn conv_forward<R: Real>(conv: &Conv, w: &[R], input: &[R], need: &[bool], act: Act) -> Vec<R> {
+/// Marks a voxel a layout does not store.
+const NONE: u32 = u32::MAX;
+
+/// Where the evaluated voxels of a cubic grid are stored: grids are kept
+/// only at the voxels that are evaluated (the rest is never read), compactly
+/// in C order with all channels of a voxel in one row, so the rows of one
+/// z-slab are contiguous.
+#[derive(Clone, Debug)]
+struct Layout {
+    /// Edge (voxels).
+    edge: usize,
+    /// Row of each voxel (C order), or [`NONE`].
+    index: Vec<u32>,
+    /// First row of each z-slab; `start[edge]` is the number of rows.
+    start: Vec<usize>,
+}
+
+impl Layout {
+    /// The layout of the voxels where `need` (C order, edge `edge`) is true.
+    fn new(need: &[bool], edge: usize) -> Layout {
+        let plane = edge * edge;
+        let counts: Vec<usize> = need.par_chunks(plane).map(|s| s.iter().filter(|&&b| b).count()).collect();
+        let mut start = Vec::with_capacity(edge + 1);
+        start.push(0);
+        for c in counts {
+            start.push(start[start.len() - 1] + c);
+        }
+        let mut index = vec![NONE; plane * edge];
+        index.par_chunks_mut(plane).zip(need.par_chunks(plane)).enumerate().for_each(|(z, (slab, nd))| {
+            // Rows fit in u32: Decoder::new caps the output at 1024^3 voxels.
+            for (r, (i, _)) in (start[z] as u32..).zip(slab.iter_mut().zip(nd).filter(|(_, &b)| b)) {
+                *i = r;
+            }
+        });
+        Layout { edge, index, start }
+    }
+
+    /// Number of stored voxels.
+    fn rows(&self) -> usize {
+        self.start[self.edge]
+    }
+
+    /// Is voxel `v` (C order) stored?
+    #[inline]
+    fn has(&self, v: usize) -> bool {
+        self.index[v] != NONE
+    }
+
+    /// The `c` values of voxel `v` in `values`; panics if `v` is not stored
+    /// (a bug: needed voxels only read needed voxels).
+    #[inline]
+    fn row<'a, T>(&self, values: &'a [T], v: usize, c: usize) -> &'a [T] {
+        &values[self.index[v] as usize * c..][..c]
+    }
+
+    /// `values` (`c` per row) cut into the rows of each z-slab, paired with
+    /// the in-slab voxel indices (`y * edge + x`) stored there, for one
+    /// parallel task per slab.
+    fn slabs<'a, T: Send>(&'a self, values: &'a mut [T], c: usize) -> Vec<(usize, &'a mut [T])> {
+        let mut parts = Vec::with_capacity(self.edge);
+        let mut rest = values;
+        for z in 0..self.edge {
+            let (part, tail) = rest.split_at_mut((self.start[z + 1] - self.start[z]) * c);
+            parts.push((z, part));
+            rest = tail;
+        }
+        parts
+    }
+
+    /// The stored voxels of slab `z` as in-slab indices `y * edge + x`.
+    fn in_slab(&self, z: usize) -> impl Iterator<Item = usize> + '_ {
+        let plane = self.edge * self.edge;
+        (0..plane).filter(move |&yx| self.index[z * plane + yx] != NONE)
+    }
+}
+
+/// Output-centric transposed convolution of `input` (stored in `lin`, edge
+/// `n`, `c_in` channels) into the voxels of `lout` (edge `2n`), `act`
+/// applied. `kernel` is the convolution's weights as `R` or, when none
+/// carries a tangent, as `f64` (a dual times an `f64` skips the constant's
+/// empty tangent; the values are the same).
+fn conv_forward<R, W>(
+    conv: &Conv,
+    kernel: &[W],
+    bias: &[R],
+    input: &[R],
+    lin: &Layout,
+    lout: &Layout,
+    act: Act,
+) -> Vec<R>
+where
+    R: Real + std::ops::Mul<W, Output = R>,
+    W: Copy + Send + Sync,
+{
     let (n, c_in, c_out) = (conv.n, conv.c_in, conv.c_out);
     let m = 2 * n;
-    let kernel = conv.weights(w);
-    let bias = &w[conv.b_off..conv.b_off + c_out];
-    let mut out = vec![R::cst(0.0); m * m * m * c_out];
-    out.par_chunks_mut(m * m * c_out).enumerate().for_each(|(oz, slab)| {
+    let mut out = vec![R::cst(0.0); lout.rows() * c_out];
+    lout.slabs(&mut out, c_out).into_par_iter().for_each(|(oz, part)| {
         let (tz, nz) = taps(oz, n);
-        for oy in 0..m {
-            let (ty, ny) = taps(oy, n);
-            for ox in 0..m {
-                if !need[(oz * m + oy) * m + ox] {
-                    continue;
-                }
-                let (tx, nx) = taps(ox, n);
-                let row = &mut slab[(oy * m + ox) * c_out..][..c_out];
-                row.copy_from_slice(bias);
-                for &(iz, kz) in &tz[..nz] {
-                    for &(iy, ky) in &ty[..ny] {
-                        for &(ix, kx) in &tx[..nx] {
-                            let a = &input[((iz * n + iy) * n + ix) * c_in..][..c_in];
-                            let k = &kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
-                            for (&av, krow) in a.iter().zip(k.chunks_exact(c_out)) {
-                                for (r, &kv) in row.iter_mut().zip(krow) {
-                                    *r += av * kv;
-                                }
+        for (yx, row) in lout.in_slab(oz).zip(part.chunks_exact_mut(c_out)) {
+            let (ty, ny) = taps(yx / m, n);
+            let (tx, nx) = taps(yx % m, n);
+            row.copy_from_slice(&bias[..c_out]);
+            for &(iz, kz) in &tz[..nz] {
+                for &(iy, ky) in &ty[..ny] {
+                    for &(ix, kx) in &tx[..nx] {
+                        let a = lin.row(input, (iz * n + iy) * n + ix, c_in);
+                        let k = &kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
+                        for (&av, krow) in a.iter().zip(k.chunks_exact(c_out)) {
+                            for (r, &kv) in row.iter_mut().zip(krow) {
+                                *r += av * kv;
                             }
                         }
                     }
                 }
-                for r in row.iter_mut() {
-                    *r = act.apply(*r);
-                }
+            }
+            for r in row.iter_mut() {
+                *r = act.apply(*r);
             }
         }
     });
     out
 }
 
-/// The inputs (edge `n`) that some needed output (edge `2n`) reads. The
-/// footprint is a product of per-axis sets, so the "any" is taken one axis
-/// at a time (x, then y, then z): about 7 n^3 x 4 reads instead of 64 n^3.
-fn pull_back(need_out: &[bool], n: usize) -> Vec<bool> {
+/// The inputs (edge `n`) that some stored output of `lout` (edge `2n`)
+/// reads. The footprint is a product of per-axis ranges (input `i` feeds
+/// outputs `2i - 1 ..= 2i + 2`), so the "any" is taken one axis at a time:
+/// along x per output row, then as ORs of whole rows (y) and planes (z).
+fn pull_back(lout: &Layout, n: usize) -> Vec<bool> {
     let m = 2 * n;
-    // Does input i read a needed value of `line` (indexed by output)?
-    #[inline]
-    fn reads(i: usize, m: usize, line: impl Fn(usize) -> bool) -> bool {
-        let lo = (2 * i).saturating_sub(1);
-        (lo..(2 * i + 3).min(m)).any(line)
-    }
-    // [oz][oy][ix], then [oz][iy][ix], then [iz][iy][ix].
+    let span = |i: usize| (2 * i).saturating_sub(1)..(2 * i + 3).min(m);
+    // [oz][oy][ix]
     let mut x = vec![false; m * m * n];
-    x.par_chunks_mut(n).enumerate().for_each(|(zy, row)| {
+    x.par_chunks_mut(n).zip(lout.index.par_chunks(m)).for_each(|(row, line)| {
         for (ix, v) in row.iter_mut().enumerate() {
-            *v = reads(ix, m, |ox| need_out[zy * m + ox]);
+            *v = line[span(ix)].iter().any(|&r| r != NONE);
         }
     });
+    // [oz][iy][ix]
     let mut y = vec![false; m * n * n];
-    y.par_chunks_mut(n * n).enumerate().for_each(|(oz, slab)| {
-        for (yx, v) in slab.iter_mut().enumerate() {
-            *v = reads(yx / n, m, |oy| x[(oz * m + oy) * n + yx % n]);
+    y.par_chunks_mut(n * n).zip(x.par_chunks(m * n)).for_each(|(plane, src)| {
+        for (iy, row) in plane.chunks_exact_mut(n).enumerate() {
+            for oy in span(iy) {
+                for (v, &s) in row.iter_mut().zip(&src[oy * n..][..n]) {
+                    *v |= s;
+                }
+            }
         }
     });
+    // [iz][iy][ix]
     let mut need = vec![false; n * n * n];
-    need.par_chunks_mut(n * n).enumerate().for_each(|(iz, slab)| {
-        for (yx, v) in slab.iter_mut().enumerate() {
-            *v = reads(iz, m, |oz| y[oz * n * n + yx]);
+    need.par_chunks_mut(n * n).enumerate().for_each(|(iz, plane)| {
+        for oz in span(iz) {
+            for (v, &s) in plane.iter_mut().zip(&y[oz * n * n..][..n * n]) {
+                *v |= s;
+            }
         }
     });
     need
@@ -260,7 +353,7 @@ impl Decoder {
             bail!("decoder.channels[{l}]: 0 channels");
         }
         let layers = channels.len();
-        if layers > 10 || res != BASE << layers {
+        if layers > 8 || res != BASE << layers {
             bail!(
                 "decoder.res: {res} is not {BASE} * 2^{layers} = {} ({layers} channel entries = {layers} transposed convolutions)",
                 BASE.checked_shl(layers as u32).unwrap_or(0)
@@ -284,7 +377,7 @@ impl Decoder {
     /// edge `e` 16 channels if `e <= 8`, 8 if `e == 16`, 4 if `e >= 32`.
     /// About 30k parameters at res 32..128, most of them in the linear layer.
     ///
-    /// Panics if `res` is not 4 * 2^L with 1 <= L <= 10.
+    /// Panics if `res` is not 4 * 2^L with 1 <= L <= 8.
     ///
     /// ```
     /// let d = dualphoton::model::Decoder::paper_small(32);
@@ -392,16 +485,20 @@ impl Decoder {
         (0..self.latent).map(|_| rng.normal()).collect()
     }
 
-    /// Which voxels each convolution's output must be evaluated at: entry
-    /// `l` has edge `8 * 2^l`, the last one is `mask`.
-    fn needs(&self, mask: &[bool]) -> Vec<Vec<bool>> {
-        let mut needs = vec![mask.to_vec()];
-        for c in self.convs[1..].iter().rev() {
-            let prev = pull_back(needs.last().map_or(mask, |v| v), c.n);
-            needs.push(prev);
+    /// Where each grid is evaluated: the base grid (everywhere), then each
+    /// convolution's output; the last is `mask`, each earlier one what the
+    /// next one reads.
+    fn layouts(&self, mask: &[bool]) -> Vec<Layout> {
+        let mut layouts = vec![Layout::new(mask, self.res)];
+        for c in self.convs.iter().rev() {
+            let need = match layouts.last() {
+                Some(l) if c.n > BASE => pull_back(l, c.n),
+                _ => vec![true; c.n.pow(3)],
+            };
+            layouts.push(Layout::new(&need, c.n));
         }
-        needs.reverse();
-        needs
+        layouts.reverse();
+        layouts
     }
 
     fn check(&self, z: usize, w: usize, mask: usize) {
@@ -410,9 +507,9 @@ impl Decoder {
         assert_eq!(mask, self.res.pow(3), "Decoder: mask has the wrong length");
     }
 
-    /// The base grid (post-activation), then every convolution's output
-    /// (post-activation; the last is the density).
-    fn activations<R: Real>(&self, z: &[R], w: &[R], needs: &[Vec<bool>]) -> Vec<Vec<R>> {
+    /// The base grid, then every convolution's output, post-activation and
+    /// stored in `layouts` (the last is the density at the mask's voxels).
+    fn activations<R: Real>(&self, z: &[R], w: &[R], layouts: &[Layout]) -> Vec<Vec<R>> {
         let n0 = BASE.pow(3) * self.c0;
         let (lw, lb) = w.split_at(self.latent * n0);
         let base: Vec<R> = lw
@@ -426,10 +523,20 @@ impl Decoder {
                 Act::Leaky.apply(s)
             })
             .collect();
+        // Weights without tangents (the usual case when differentiating
+        // with respect to z only) are used as plain numbers. `x - re(x)` is
+        // an exact zero iff x has no tangent (stops at the first that has).
+        let plain: Option<Vec<f64>> =
+            w.iter().all(|x| (*x - R::cst(x.re())).is_exact_zero()).then(|| w.iter().map(R::re).collect());
         let mut acts = vec![base];
         for (l, c) in self.convs.iter().enumerate() {
             let act = if l + 1 == self.convs.len() { Act::ReluScaled(self.out_scale) } else { Act::Leaky };
-            let next = conv_forward(c, w, &acts[l], &needs[l], act);
+            let bias = &w[c.b_off..c.b_off + c.c_out];
+            let (lin, lout) = (&layouts[l], &layouts[l + 1]);
+            let next = match &plain {
+                Some(wf) => conv_forward(c, c.weights(wf), bias, &acts[l], lin, lout, act),
+                None => conv_forward(c, c.weights(w), bias, &acts[l], lin, lout, act),
+            };
             acts.push(next);
         }
         acts
@@ -453,8 +560,36 @@ impl Decoder {
     /// ```
     pub fn forward<R: Real>(&self, z: &[R], w: &[R], mask: &[bool]) -> Vec<R> {
         self.check(z.len(), w.len(), mask.len());
-        let needs = self.needs(mask);
-        let mut acts = self.activations(z, w, &needs);
+        let layouts = self.layouts(mask);
+        let acts = self.activations(z, w, &layouts);
+        let (lout, density) = (&layouts[self.convs.len()], &acts[self.convs.len()]);
+        // Scattered in parallel: for K-lane duals at res 128 the dense grid
+        // is ~170 MB, and writing it costs more than the arithmetic.
+        let mut out = Vec::new();
+        (0..mask.len())
+            .into_par_iter()
+            .map(|v| if lout.has(v) { lout.row(density, v, 1)[0] } else { R::cst(0.0) })
+            .collect_into_vec(&mut out);
+        out
+    }
+
+    /// [`Decoder::forward`] at the masked-in voxels only, in C order (length
+    /// = number of true entries of `mask`): the same values without the
+    /// dense grid (which for K-lane duals is large).
+    ///
+    /// ```
+    /// use dualphoton::model::Decoder;
+    /// let d = Decoder::paper_small(8);
+    /// let (z, w) = (d.init_latent(1), d.init(1));
+    /// let mask: Vec<bool> = (0..512).map(|v| v % 3 == 0).collect();
+    /// let dense = d.forward(&z, &w, &mask);
+    /// let inside: Vec<f64> = (0..512).filter(|v| mask[*v]).map(|v| dense[v]).collect();
+    /// assert_eq!(d.forward_masked(&z, &w, &mask), inside);
+    /// ```
+    pub fn forward_masked<R: Real>(&self, z: &[R], w: &[R], mask: &[bool]) -> Vec<R> {
+        self.check(z.len(), w.len(), mask.len());
+        let layouts = self.layouts(mask);
+        let mut acts = self.activations(z, w, &layouts);
         acts.pop().unwrap_or_default()
     }
 
@@ -477,26 +612,25 @@ impl Decoder {
     pub fn backward(&self, z: &[f64], w: &[f64], mask: &[bool], grad_out: &[f64]) -> (Vec<f64>, Vec<f64>) {
         self.check(z.len(), w.len(), mask.len());
         assert_eq!(grad_out.len(), mask.len(), "Decoder: grad_out has the wrong length");
-        let needs = self.needs(mask);
-        let acts = self.activations(z, w, &needs);
+        let layouts = self.layouts(mask);
+        let acts = self.activations(z, w, &layouts);
         let mut gw = vec![0.0; self.n_params];
-        // g: dL/d(pre-activation) of the current layer's output.
+        // g: dL/d(pre-activation) of the current layer's output, stored like it.
         let last = Act::ReluScaled(self.out_scale);
         let density = &acts[self.convs.len()];
-        let mut g: Vec<f64> = (0..mask.len())
-            .map(|v| if mask[v] { grad_out[v] * last.slope_from_output(density[v]) } else { 0.0 })
-            .collect();
+        let mut g: Vec<f64> = (0..mask.len()).filter(|&v| mask[v]).map(|v| grad_out[v]).collect();
+        for (gv, &d) in g.iter_mut().zip(density) {
+            *gv *= last.slope_from_output(d);
+        }
         for (l, c) in self.convs.iter().enumerate().rev() {
-            let need_out = &needs[l];
-            let input = &acts[l];
-            conv_grad_weights(c, input, &g, need_out, &mut gw);
-            let need_in = if l == 0 { None } else { Some(&needs[l - 1][..]) };
-            g = conv_grad_input(c, w, &g, need_in);
-            for (gv, &a) in g.iter_mut().zip(input) {
+            let (lin, lout) = (&layouts[l], &layouts[l + 1]);
+            conv_grad_weights(c, &acts[l], lin, &g, lout, &mut gw);
+            g = conv_grad_input(c, w, &g, lout, lin);
+            for (gv, &a) in g.iter_mut().zip(&acts[l]) {
                 *gv *= Act::Leaky.slope_from_output(a);
             }
         }
-        // Linear layer: g is dL/d(pre-activation) of the base grid.
+        // Linear layer: g is dL/d(pre-activation) of the base grid (dense).
         let n0 = BASE.pow(3) * self.c0;
         let mut gz = vec![0.0; self.latent];
         let (gw_lin, gb_lin) = gw[..n0 * (self.latent + 1)].split_at_mut(self.latent * n0);
@@ -513,73 +647,82 @@ impl Decoder {
 }
 
 /// dL/d(weights) and dL/d(biases) of one convolution into `gw`, from its
-/// input (`input`) and dL/d(pre-activation) of its output (`g`, zero off
-/// `need`). Parallel over the 64 kernel taps, each summing over the outputs
-/// in a fixed order.
-fn conv_grad_weights(c: &Conv, input: &[f64], g: &[f64], need: &[bool], gw: &mut [f64]) {
+/// input (stored in `lin`) and dL/d(pre-activation) of its output `g`
+/// (stored in `lout`). Output centric like the forward pass: every output
+/// z-slab sums its voxels' contributions into a partial of its own, in a
+/// fixed order; the partials are then added in slab order.
+fn conv_grad_weights(c: &Conv, input: &[f64], lin: &Layout, g: &[f64], lout: &Layout, gw: &mut [f64]) {
     let (n, c_in, c_out) = (c.n, c.c_in, c.c_out);
     let m = 2 * n;
-    // The outputs fed by kernel index k along one axis: o = 2 i - 1 + k.
-    let axis = |k: usize| (0..n).filter_map(move |i| (2 * i + k).checked_sub(1).filter(|&o| o < m).map(|o| (i, o)));
-    gw[c.w_off..c.b_off].par_chunks_mut(c_in * c_out).enumerate().for_each(|(t, blk)| {
-        let (kz, ky, kx) = (t / 16, (t / 4) % 4, t % 4);
-        for (iz, oz) in axis(kz) {
-            for (iy, oy) in axis(ky) {
-                for (ix, ox) in axis(kx) {
-                    let o = (oz * m + oy) * m + ox;
-                    if !need[o] {
-                        continue;
-                    }
-                    let gr = &g[o * c_out..][..c_out];
-                    let a = &input[((iz * n + iy) * n + ix) * c_in..][..c_in];
-                    for (&av, brow) in a.iter().zip(blk.chunks_exact_mut(c_out)) {
-                        for (b, &gv) in brow.iter_mut().zip(gr) {
-                            *b += av * gv;
+    let size = TAPS * c_in * c_out + c_out;
+    let partials: Vec<Vec<f64>> = (0..m)
+        .into_par_iter()
+        .map(|oz| {
+            let mut part = vec![0.0; size];
+            let (kernel, bias) = part.split_at_mut(TAPS * c_in * c_out);
+            let (tz, nz) = taps(oz, n);
+            let rows = g[lout.start[oz] * c_out..lout.start[oz + 1] * c_out].chunks_exact(c_out);
+            for (yx, gr) in lout.in_slab(oz).zip(rows) {
+                for (b, &gv) in bias.iter_mut().zip(gr) {
+                    *b += gv;
+                }
+                let (ty, ny) = taps(yx / m, n);
+                let (tx, nx) = taps(yx % m, n);
+                for &(iz, kz) in &tz[..nz] {
+                    for &(iy, ky) in &ty[..ny] {
+                        for &(ix, kx) in &tx[..nx] {
+                            let a = lin.row(input, (iz * n + iy) * n + ix, c_in);
+                            let blk = &mut kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
+                            for (&av, brow) in a.iter().zip(blk.chunks_exact_mut(c_out)) {
+                                for (bv, &gv) in brow.iter_mut().zip(gr) {
+                                    *bv += av * gv;
+                                }
+                            }
                         }
                     }
                 }
             }
-        }
-    });
-    let gb = &mut gw[c.b_off..c.b_off + c_out];
-    for (o, _) in need.iter().enumerate().filter(|(_, &nd)| nd) {
-        for (b, &gv) in gb.iter_mut().zip(&g[o * c_out..][..c_out]) {
-            *b += gv;
+            part
+        })
+        .collect();
+    // Weights then biases are contiguous in `w`, as in a partial.
+    let out = &mut gw[c.w_off..c.w_off + size];
+    for part in &partials {
+        for (o, &p) in out.iter_mut().zip(part) {
+            *o += p;
         }
     }
 }
 
-/// dL/d(input) of one convolution (edge `n`, `c_in` channels) from
-/// dL/d(pre-activation) of its output `g`: the transposed operation, input
-/// centric (each input gathers from the up to 4^3 outputs it feeds),
-/// evaluated where `need_in` is true (everywhere if `None`), 0 elsewhere.
-fn conv_grad_input(c: &Conv, w: &[f64], g: &[f64], need_in: Option<&[bool]>) -> Vec<f64> {
+/// dL/d(input) of one convolution (edge `n`, `c_in` channels), stored in
+/// `lin`, from dL/d(pre-activation) `g` of its output (stored in `lout`):
+/// the transposed operation, input centric (each input gathers from the up
+/// to 4^3 outputs it feeds, skipping those not stored: their `g` is 0).
+fn conv_grad_input(c: &Conv, w: &[f64], g: &[f64], lout: &Layout, lin: &Layout) -> Vec<f64> {
     let (n, c_in, c_out) = (c.n, c.c_in, c.c_out);
     let m = 2 * n;
     let kernel = c.weights(w);
-    let mut gin = vec![0.0; n * n * n * c_in];
-    gin.par_chunks_mut(n * n * c_in).enumerate().for_each(|(iz, slab)| {
+    let mut gin = vec![0.0; lin.rows() * c_in];
+    lin.slabs(&mut gin, c_in).into_par_iter().for_each(|(iz, part)| {
         let (oz, cz) = outs(iz, m);
-        for iy in 0..n {
-            let (oy, cy) = outs(iy, m);
-            for ix in 0..n {
-                if need_in.is_some_and(|nd| !nd[(iz * n + iy) * n + ix]) {
-                    continue;
-                }
-                let (ox, cx) = outs(ix, m);
-                let row = &mut slab[(iy * n + ix) * c_in..][..c_in];
-                for &(z, kz) in &oz[..cz] {
-                    for &(y, ky) in &oy[..cy] {
-                        for &(x, kx) in &ox[..cx] {
-                            let gr = &g[((z * m + y) * m + x) * c_out..][..c_out];
-                            let k = &kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
-                            for (r, krow) in row.iter_mut().zip(k.chunks_exact(c_out)) {
-                                let mut s = 0.0;
-                                for (&kv, &gv) in krow.iter().zip(gr) {
-                                    s += kv * gv;
-                                }
-                                *r += s;
+        for (yx, row) in lin.in_slab(iz).zip(part.chunks_exact_mut(c_in)) {
+            let (oy, cy) = outs(yx / n, m);
+            let (ox, cx) = outs(yx % n, m);
+            for &(z, kz) in &oz[..cz] {
+                for &(y, ky) in &oy[..cy] {
+                    for &(x, kx) in &ox[..cx] {
+                        let o = (z * m + y) * m + x;
+                        if !lout.has(o) {
+                            continue;
+                        }
+                        let gr = lout.row(g, o, c_out);
+                        let k = &kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
+                        for (r, krow) in row.iter_mut().zip(k.chunks_exact(c_out)) {
+                            let mut s = 0.0;
+                            for (&kv, &gv) in krow.iter().zip(gr) {
+                                s += kv * gv;
                             }
+                            *r += s;
                         }
                     }
                 }
@@ -652,19 +795,19 @@ mod tests {
             let input = normals(2, n * n * n * c_in);
             let m = 2 * n;
             let want: Vec<f64> = naive(&conv, &w, &input).into_iter().map(|x| Act::Leaky.apply(x)).collect();
-            let got = conv_forward(&conv, &w, &input, &vec![true; m * m * m], Act::Leaky);
+            let full = |e: usize| Layout::new(&vec![true; e * e * e], e);
+            let (lin, lout) = (full(n), full(m));
+            let got = conv_forward(&conv, conv.weights(&w), &w[conv.b_off..], &input, &lin, &lout, Act::Leaky);
             for (a, b) in got.iter().zip(&want) {
                 assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
             }
-            // A sparse need: evaluated values unchanged, the rest 0.
+            // A sparse output: the stored voxels' values unchanged.
             let need: Vec<bool> = normals(3, m * m * m).iter().map(|&u| u > 0.5).collect();
-            let part = conv_forward(&conv, &w, &input, &need, Act::Leaky);
-            for o in 0..m * m * m {
-                for co in 0..c_out {
-                    let v = o * c_out + co;
-                    assert_eq!(part[v], if need[o] { got[v] } else { 0.0 });
-                }
-            }
+            let sparse = Layout::new(&need, m);
+            let part = conv_forward(&conv, conv.weights(&w), &w[conv.b_off..], &input, &lin, &sparse, Act::Leaky);
+            let kept: Vec<f64> =
+                (0..m * m * m).filter(|&o| need[o]).flat_map(|o| got[o * c_out..][..c_out].to_vec()).collect();
+            assert_eq!(part, kept);
         }
     }
 
@@ -672,7 +815,7 @@ mod tests {
     fn pull_back_marks_exactly_the_read_inputs() {
         let n = 4;
         let need: Vec<bool> = normals(4, 512).iter().map(|&u| u > 1.2).collect();
-        let got = pull_back(&need, n);
+        let got = pull_back(&Layout::new(&need, 2 * n), n);
         let mut want = vec![false; 64];
         for o in (0..512).filter(|&o| need[o]) {
             let (tz, nz) = taps(o / 64, n);
@@ -691,13 +834,17 @@ mod tests {
 
     #[test]
     fn mask_zeroes_outside_and_keeps_inside() {
-        let d = Decoder::paper_small(16);
-        let (z, w) = (d.init_latent(3), d.init(3));
-        let all = d.forward(&z, &w, &vec![true; 4096]);
-        let mask: Vec<bool> = normals(5, 4096).iter().map(|&u| u > 0.8).collect();
-        let part = d.forward(&z, &w, &mask);
-        for v in 0..4096 {
-            assert_eq!(part[v].to_bits(), if mask[v] { all[v].to_bits() } else { 0 });
+        for (d, ball_mask) in cases() {
+            let (z, w) = (d.init_latent(3), d.init(3));
+            let n = ball_mask.len();
+            let all = d.forward(&z, &w, &vec![true; n]);
+            let scattered: Vec<bool> = normals(5, n).iter().map(|&u| u > 0.8).collect();
+            for mask in [ball_mask, scattered] {
+                let part = d.forward(&z, &w, &mask);
+                for v in 0..n {
+                    assert_eq!(part[v].to_bits(), if mask[v] { all[v].to_bits() } else { 0 });
+                }
+            }
         }
     }
 
@@ -708,6 +855,17 @@ mod tests {
         let dw: Vec<Dual64> =
             w.iter().enumerate().map(|(k, &v)| Dual64::new(v, (!on_z && k == i) as u8 as f64)).collect();
         d.forward(&dz, &dw, mask).iter().map(|x| x.eps).collect()
+    }
+
+    /// The decoders the derivative tests run on, each with a mask: the
+    /// default at res 16 (two convolutions), and a narrow one at res 32
+    /// (three; two levels of pulled-back masks) with a ball and scattered
+    /// voxels.
+    fn cases() -> Vec<(Decoder, Vec<bool>)> {
+        let deep = Decoder::new(6, 32, &[3, 4, 2]).unwrap();
+        let scattered: Vec<bool> =
+            normals(14, 32 * 32 * 32).iter().zip(ball(32, 9.0)).map(|(&u, b)| b || u > 2.5).collect();
+        vec![(Decoder::paper_small(16), ball(16, 6.5)), (deep, scattered)]
     }
 
     /// Some coordinates of w: linear weight and bias, a weight and a bias of
@@ -723,63 +881,61 @@ mod tests {
 
     #[test]
     fn dual_forward_matches_central_differences() {
-        let d = Decoder::paper_small(16);
-        let (z, w) = (d.init_latent(11), d.init(11));
-        let mask = ball(16, 6.5);
-        let cases: Vec<(bool, usize)> =
-            [(true, 0), (true, 17)].into_iter().chain(w_coords(&d).into_iter().map(|i| (false, i))).collect();
-        for (on_z, i) in cases {
-            let tangent = dual_forward(&d, &z, &w, &mask, on_z, i);
-            // The decoder is piecewise linear in each coordinate: central differences
-            // have no truncation error unless a kink is crossed, so h is large
-            // against round-off (~1e-17 in densities ~0.005).
-            let h = 1e-4;
-            let eval = |s: f64| {
-                let (mut z2, mut w2) = (z.clone(), w.clone());
-                if on_z {
-                    z2[i] += s
-                } else {
-                    w2[i] += s
-                }
-                d.forward(&z2, &w2, &mask)
-            };
-            let (p, m) = (eval(h), eval(-h));
-            let scale = tangent.iter().fold(0.0f64, |a, t| a.max(t.abs()));
-            assert!(scale > 0.0, "coordinate {i} has no effect");
-            let worst = (0..tangent.len())
-                .map(|v| ((p[v] - m[v]) / (2.0 * h) - tangent[v]).abs() / tangent[v].abs().max(1e-3 * scale))
-                .fold(0.0f64, f64::max);
-            eprintln!("on_z {on_z} i {i}: largest relative error {worst:.2e}");
-            assert!(worst <= 1e-6, "on_z {on_z} i {i}: relative error {worst}");
+        for (d, mask) in cases() {
+            let (z, w) = (d.init_latent(11), d.init(11));
+            let coords: Vec<(bool, usize)> = [(true, 0), (true, d.latent - 1)]
+                .into_iter()
+                .chain(w_coords(&d).into_iter().map(|i| (false, i)))
+                .collect();
+            for (on_z, i) in coords {
+                let tangent = dual_forward(&d, &z, &w, &mask, on_z, i);
+                // The decoder is piecewise linear in each coordinate: central
+                // differences have no truncation error unless a kink is crossed,
+                // so h is large against round-off (~1e-17 in densities ~0.005).
+                let h = 1e-4;
+                let eval = |s: f64| {
+                    let (mut z2, mut w2) = (z.clone(), w.clone());
+                    if on_z {
+                        z2[i] += s
+                    } else {
+                        w2[i] += s
+                    }
+                    d.forward(&z2, &w2, &mask)
+                };
+                let (p, m) = (eval(h), eval(-h));
+                let scale = tangent.iter().fold(0.0f64, |a, t| a.max(t.abs()));
+                assert!(scale > 0.0, "coordinate {i} has no effect");
+                let worst = (0..tangent.len())
+                    .map(|v| ((p[v] - m[v]) / (2.0 * h) - tangent[v]).abs() / tangent[v].abs().max(1e-3 * scale))
+                    .fold(0.0f64, f64::max);
+                eprintln!("res {} on_z {on_z} i {i}: largest relative error {worst:.2e}", d.res);
+                assert!(worst <= 1e-6, "res {} on_z {on_z} i {i}: relative error {worst}", d.res);
+            }
         }
     }
 
     #[test]
     fn backward_matches_forward_mode() {
-        let d = Decoder::paper_small(16);
-        let (z, w) = (d.init_latent(12), d.init(12));
-        let mask = ball(16, 6.5);
-        let v = normals(13, 4096);
-        let (gz, gw) = d.backward(&z, &w, &mask, &v);
-        let check = |on_z: bool, i: usize, rev: f64| {
-            let t = dual_forward(&d, &z, &w, &mask, on_z, i);
-            let fwd: f64 = t.iter().zip(&v).map(|(a, b)| a * b).sum();
-            assert!((fwd - rev).abs() <= 1e-10 * fwd.abs().max(1e-12), "on_z {on_z} i {i}: fwd {fwd} rev {rev}");
-        };
-        for i in [0, 9, 63] {
-            check(true, i, gz[i]);
-        }
-        for i in w_coords(&d) {
-            check(false, i, gw[i]);
-        }
-        // Outside the mask grad_out is ignored.
-        let mut v2 = v.clone();
-        for (k, m) in mask.iter().enumerate() {
-            if !m {
-                v2[k] = 1e3;
+        for (d, mask) in cases() {
+            let (z, w) = (d.init_latent(12), d.init(12));
+            let v = normals(13, mask.len());
+            let (gz, gw) = d.backward(&z, &w, &mask, &v);
+            let check = |on_z: bool, i: usize, rev: f64| {
+                let t = dual_forward(&d, &z, &w, &mask, on_z, i);
+                let fwd: f64 = t.iter().zip(&v).map(|(a, b)| a * b).sum();
+                let err = (fwd - rev).abs() / fwd.abs().max(1e-12);
+                assert!(err <= 1e-10, "res {} on_z {on_z} i {i}: fwd {fwd} rev {rev}", d.res);
+            };
+            for i in [0, 5, d.latent - 1] {
+                check(true, i, gz[i]);
             }
+            for i in w_coords(&d) {
+                check(false, i, gw[i]);
+            }
+            // Outside the mask grad_out is ignored.
+            let v2: Vec<f64> = v.iter().zip(&mask).map(|(&g, &m)| if m { g } else { 1e3 }).collect();
+            assert_eq!(d.backward(&z, &w, &mask, &v2), (gz, gw));
         }
-        assert_eq!(d.backward(&z, &w, &mask, &v2), (gz, gw));
     }
 
     #[test]
@@ -850,16 +1006,28 @@ mod tests {
     #[test]
     #[ignore]
     fn bench_timings() {
-        fn time<T>(f: impl Fn() -> T) -> f64 {
-            let mut t: Vec<f64> = (0..5)
+        /// Process CPU time (user + system) in ms, from /proc/self/stat
+        /// (clock ticks of 10 ms): other jobs on the shared cores inflate
+        /// wall times but not this.
+        fn cpu_ms() -> f64 {
+            let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+            let f: Vec<f64> =
+                s.rsplit(')').next().unwrap_or("").split_whitespace().map(|v| v.parse().unwrap_or(0.0)).collect();
+            (f.get(11).unwrap_or(&0.0) + f.get(12).unwrap_or(&0.0)) * 10.0
+        }
+        /// (median wall ms, mean CPU ms) per call.
+        fn time<T>(f: impl Fn() -> T) -> String {
+            let c0 = cpu_ms();
+            let mut t: Vec<f64> = (0..15)
                 .map(|_| {
                     let s = std::time::Instant::now();
                     std::hint::black_box(f());
                     s.elapsed().as_secs_f64() * 1e3
                 })
                 .collect();
+            let cpu = (cpu_ms() - c0) / 15.0;
             t.sort_by(f64::total_cmp);
-            t[2]
+            format!("{:.1} ms (cpu {cpu:.1} ms)", t[7])
         }
         for (res, r) in [(64, 16.84), (64, 100.0), (128, 25.4)] {
             let d = Decoder::paper_small(res);
@@ -878,15 +1046,33 @@ mod tests {
                 })
                 .collect();
             let wd: Vec<DualSVec64<8>> = w.iter().map(|&v| DualSVec64::cst(v)).collect();
+            // Random directions over all of z and w: every parameter a tangent.
+            let rw = normals(2, 8 * w.len());
+            let rz = normals(3, 8 * z.len());
+            let zr: Vec<DualSVec64<8>> =
+                (0..z.len()).map(|i| with_tangents(z[i], std::array::from_fn(|k| rz[8 * i + k]))).collect();
+            let wr: Vec<DualSVec64<8>> =
+                (0..w.len()).map(|i| with_tangents(w[i], std::array::from_fn(|k| rw[8 * i + k]))).collect();
             let g = normals(1, res * res * res);
-            let needs = d.needs(&mask);
-            let per_layer: Vec<usize> = needs.iter().map(|n| n.iter().filter(|&&b| b).count()).collect();
+            let rho = d.forward_masked(&z, &w, &mask);
+            let (pos, mean) = (
+                rho.iter().filter(|&&r| r > 0.0).count() as f64 / rho.len() as f64,
+                rho.iter().sum::<f64>() / rho.len() as f64,
+            );
             eprintln!(
-                "res {res} mask {count} (needed per conv output {per_layer:?}): f64 {:.1} ms, dual8(z) {:.1} ms, backward {:.1} ms, mask pull-back {:.2} ms",
+                "{}\ninit (seed 1) over the mask: positive {pos:.4}, mean {mean:.5}, max {:.5}",
+                d.describe(),
+                rho.iter().fold(0.0f64, |a, &r| a.max(r))
+            );
+            let per_layer: Vec<usize> = d.layouts(&mask).iter().map(Layout::rows).collect();
+            eprintln!(
+                "res {res} mask {count} (voxels evaluated per layer {per_layer:?}):\n  f64 {}\n  dual8(z) {}\n  dual8(z, w) {}\n  dual8(z) masked only {}\n  backward {}\n  layouts {}",
                 time(|| d.forward(&z, &w, &mask)),
                 time(|| d.forward(&zd, &wd, &mask)),
+                time(|| d.forward(&zr, &wr, &mask)),
+                time(|| d.forward_masked(&zd, &wd, &mask)),
                 time(|| d.backward(&z, &w, &mask, &g)),
-                time(|| d.needs(&mask))
+                time(|| d.layouts(&mask))
             );
         }
     }
