@@ -70,13 +70,7 @@ fn measure(repeats: usize, mut f: impl FnMut()) -> (f64, f64) {
 }
 
 fn main() -> std::process::ExitCode {
-    match run(Args::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    dualphoton::error::exit_code(run(Args::parse()))
 }
 
 fn run(mut args: Args) -> Result<()> {

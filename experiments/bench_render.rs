@@ -144,13 +144,7 @@ fn median_of(times: &[Timings], stage: fn(&Timings) -> f64) -> f64 {
 }
 
 fn main() -> std::process::ExitCode {
-    match run(Args::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    dualphoton::error::exit_code(run(Args::parse()))
 }
 
 fn run(mut args: Args) -> Result<()> {

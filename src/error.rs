@@ -38,3 +38,15 @@ impl From<std::io::Error> for Error {
 macro_rules! bail {
     ($($arg:tt)*) => { return Err($crate::error::Error(format!($($arg)*))) };
 }
+
+/// The exit code of a command-line run: success, or the error printed as
+/// one line (`error: ...`) and a failure code.
+pub fn exit_code(result: Result<()>) -> std::process::ExitCode {
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -168,14 +168,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(cli.command) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    dualphoton::error::exit_code(run(Cli::parse().command))
 }
 
 fn run(command: Command) -> Result<()> {

@@ -78,7 +78,7 @@ impl Default for TrainSettings {
         TrainSettings {
             iterations: 250,
             estimator: Estimator::FwdFull,
-            lanes: 8,
+            lanes: 16,
             weight_directions: 8,
             weight_mode: WeightDirections::Orthonormal,
             lr_latent: 0.05,
