@@ -1,5 +1,5 @@
-//! The reconstruction pipeline end to end at a tiny size: it runs, writes
-//! every promised file, and its numbers are finite.
+//! The experiment binaries end to end at a tiny size (`--smoke`): they run,
+//! write every promised file, and their numbers are finite.
 
 use std::process::Command;
 
@@ -50,4 +50,14 @@ fn training_lowers_the_loss_with_exact_gradients() {
     let log = std::fs::read_to_string(dir.join("log.csv")).unwrap();
     let losses: Vec<f64> = log.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
     assert!(losses.iter().all(|l| l.is_finite()));
+}
+
+#[test]
+fn benchmarks_run_at_smoke_size() {
+    for (bin, name) in [(env!("CARGO_BIN_EXE_bench_render"), "render"), (env!("CARGO_BIN_EXE_bench_grad"), "grad")] {
+        let dir = std::env::temp_dir().join(format!("dualphoton-bench-{name}-{}", std::process::id()));
+        let out = Command::new(bin).args(["--smoke", "--out", dir.to_str().unwrap()]).output().unwrap();
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(dir.join("summary.md").exists() && dir.join("manifest.json").exists());
+    }
 }

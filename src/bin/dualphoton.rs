@@ -59,7 +59,7 @@ enum Command {
         /// Photons emitted (default: render.photons, else 300000).
         #[arg(long)]
         photons: Option<u64>,
-        /// Photon kernel radius in world units (default: render.kernel_radius, else 1.5 voxels).
+        /// Photon kernel radius in world units (default: render.kernel_radius, else 1 voxel).
         #[arg(long)]
         radius: Option<f64>,
         /// Ray-marching step in world units (default: render.step, else half a voxel).

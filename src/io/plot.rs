@@ -53,6 +53,16 @@ fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     }
 }
 
+/// A short tick label: 3 significant digits, scientific outside [0.01, 1e4).
+fn tick(v: f64) -> String {
+    if v != 0.0 && !(0.01..1e4).contains(&v.abs()) {
+        format!("{v:.1e}")
+    } else {
+        let s = format!("{v:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
 /// Draws `series` into an SVG file of 800 x 560 pixels.
 pub fn line_chart(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
     let keep = |x: f64, y: f64| x.is_finite() && y.is_finite() && (!axes.log_x || x > 0.0) && (!axes.log_y || y > 0.0);
@@ -68,7 +78,14 @@ pub fn line_chart(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
     macro_rules! draw {
         ($chart:expr) => {{
             let mut chart = $chart.map_err(|e| err(&e))?;
-            chart.configure_mesh().x_desc(axes.x).y_desc(axes.y).draw().map_err(|e| err(&e))?;
+            chart
+                .configure_mesh()
+                .x_desc(axes.x)
+                .y_desc(axes.y)
+                .x_label_formatter(&|v| tick(*v))
+                .y_label_formatter(&|v| tick(*v))
+                .draw()
+                .map_err(|e| err(&e))?;
             for (i, (s, pts)) in series.iter().zip(&clean).enumerate() {
                 let colour = COLOURS[i % COLOURS.len()];
                 chart
@@ -82,6 +99,7 @@ pub fn line_chart(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
             }
             chart
                 .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
                 .draw()
