@@ -2,12 +2,14 @@
 //! frozen estimator (DESIGN.md §3): forward mode with dual numbers, reverse
 //! mode with the project's tape, and the estimators built on them.
 //!
-//! | name       | what                                                           | cost                        |
-//! |------------|----------------------------------------------------------------|-----------------------------|
-//! | `fwd-full` | exact; coordinate directions in chunks of K lanes              | P / K dual passes           |
-//! | `fwd-rand` | unbiased; K random directions in one dual pass                 | 1 dual pass                 |
-//! | `rev-sub`  | unbiased; reverse mode on random pixels and photon paths       | about the subset's share    |
-//! | `rev-full` | exact; reverse mode on every pixel and path                    | a few primal renders        |
+//! | name       | what                                                     | cost at 64^3 (x one primal render) |
+//! |------------|----------------------------------------------------------|-------------------------------------|
+//! | `fwd-full` | exact; coordinate directions in chunks of K lanes        | P / K dual passes (64 dirs, K = 16: about 5) |
+//! | `fwd-rand` | unbiased; K random directions in one dual pass           | 1 dual pass (about 1.6)            |
+//! | `rev-sub`  | unbiased; reverse mode on random pixels and photon paths | about 0.3 at the paper's subsets   |
+//! | `rev-full` | exact; reverse mode on every pixel and path              | about 3.4, under 400 MiB           |
+//!
+//! (`results/bench_grad/`; the primal render that freezes the estimator comes on top.)
 //!
 //! Derivatives with respect to voxels whose block of the sampling density is
 //! empty are zero by construction (nothing is marched there); pass a

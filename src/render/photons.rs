@@ -1,9 +1,13 @@
 //! Photon tracing (DESIGN.md §2): photons leave the point lights towards the
-//! occupied part of the volume, every free flight is forced to end in a
-//! collision inside the medium (weight `1 - T` of the whole segment, so no
-//! photon is wasted on escaping), directions follow Henyey-Greenstein, and a
-//! photon is stored at its 2nd..max_order-th collision with the power that
-//! arrives there (the 1st collision is single scattering, computed directly).
+//! occupied part of the volume ([`emission`](super::emission)), every free
+//! flight is forced to end in a collision inside the medium (weight `1 - T`
+//! of the whole segment, so no photon is wasted on escaping), directions
+//! follow Henyey-Greenstein mixed with lobes towards the cameras
+//! ([`Tracer::scatter`]'s one-sample mixture), and a photon is stored at its
+//! 2nd..max_order-th collision with the power that arrives there (the 1st
+//! collision is single scattering, computed directly). Every decision uses
+//! the sampling density; [`Tracer::replay`] re-evaluates a path's power as a
+//! function of another density for the frozen estimator.
 
 pub use super::emission::{emitters, Emitter};
 use super::march::{Marcher, Step};
