@@ -37,8 +37,8 @@ struct Args {
     /// Forward-mode directions for the decoder weights per update.
     #[arg(long, default_value_t = 8)]
     weight_directions: usize,
-    /// How weight directions are chosen: orthonormal or coordinates.
-    #[arg(long, default_value = "orthonormal")]
+    /// How weight directions are chosen: orthonormal, guided or coordinates.
+    #[arg(long, default_value = "guided")]
     weight_mode: String,
     /// Adam step of the latent.
     #[arg(long, default_value_t = 0.05)]
@@ -83,7 +83,8 @@ fn run(mut args: Args) -> Result<()> {
     let weight_mode = match args.weight_mode.as_str() {
         "orthonormal" => WeightDirections::Orthonormal,
         "coordinates" => WeightDirections::Coordinates,
-        m => return Err(Error(format!("--weight-mode: {m:?} is not orthonormal or coordinates"))),
+        "guided" => WeightDirections::Guided,
+        m => return Err(Error(format!("--weight-mode: {m:?} is not orthonormal, guided or coordinates"))),
     };
     let estimator: Estimator = args.estimator.parse()?;
 

@@ -39,6 +39,14 @@ pub enum WeightDirections {
     /// Random orthonormal directions; the step uses the projection of the
     /// gradient onto their span (scaled to be unbiased: `n/K Σ (g·q) q`).
     Orthonormal,
+    /// A guessed direction first, then random ones, orthonormalised; the
+    /// step is the exact projection of the gradient onto their span
+    /// (`Σ (g·q) q`: biased, but always a descent direction). The guess is
+    /// the decoder's vector-Jacobian product of the image residuals
+    /// back-projected along the camera rays (attenuated, not differentiated
+    /// through the renderer): cheap, and far better aligned with the
+    /// gradient than a random direction in 31,000 dimensions.
+    Guided,
 }
 
 /// Everything a training run is set up with.
@@ -80,7 +88,7 @@ impl Default for TrainSettings {
             estimator: Estimator::FwdFull,
             lanes: 16,
             weight_directions: 8,
-            weight_mode: WeightDirections::Orthonormal,
+            weight_mode: WeightDirections::Guided,
             lr_latent: 0.05,
             lr_weights: 0.01,
             photons: 50_000,
@@ -411,6 +419,7 @@ fn gradient(
                 WeightDirections::Orthonormal => {
                     random_weight_gradient(level, model, frozen, settings, Directions::Orthonormal, rng)?
                 }
+                WeightDirections::Guided => guided_weight_gradient(level, model, frozen, settings, rng)?,
             };
             Ok(((all(dz.len()), dz), gw))
         }
@@ -539,4 +548,72 @@ fn random_latent_gradient(
         (0..n).map(|i| factor * (0..K).map(|k| d[k] * dirs[k][i]).sum::<f64>()).collect()
     }
     Ok(crate::with_lanes!(settings.lanes, pass(level, model, frozen, rng)))
+}
+
+/// The image residuals of the training cameras back-projected onto the
+/// level's voxels along the pixel-centre rays, attenuated by the camera
+/// transmittance: a guess of `dL/drho` that needs no renderer derivative.
+fn back_projection(level: &Level, frozen: &Frozen) -> Vec<f64> {
+    let d = &level.scene.density;
+    let scale = level.scene.medium.sigma_t_scale;
+    let rays = frozen.camera_rays(d, None);
+    let mut g = vec![0.0; d.len()];
+    for (c, target) in level.targets.iter().enumerate() {
+        let cam = &level.scene.cameras[c];
+        for p in 0..cam.pixels() {
+            let r = frozen.images[c].data[p] - target.data[p];
+            if r == 0.0 {
+                continue;
+            }
+            let ray = cam.ray((p % cam.width) as f64 + 0.5, (p / cam.width) as f64 + 0.5);
+            let mut t = 1.0;
+            rays.marcher.steps(&ray, f64::INFINITY, 0.5, |s| {
+                let x = ray.at(s.sample);
+                if let Some(st) = d.stencil(&x) {
+                    for k in 0..8 {
+                        g[st.index[k]] += r * t * s.h * st.weight[k];
+                    }
+                }
+                t *= (-d.at(&x) * scale * s.h).exp();
+                t > 1e-6
+            });
+        }
+    }
+    g
+}
+
+/// [`WeightDirections::Guided`]: the projection of `dL/dw` onto a guessed
+/// direction and `weight_directions - 1` random ones, from exact forward-mode
+/// directional derivatives.
+fn guided_weight_gradient(level: &Level, model: &Model, frozen: &Frozen, settings: &TrainSettings, rng: &mut Rng) -> Result<Sparse> {
+    let n = model.w.len();
+    let k = settings.weight_directions.min(n);
+    if k == 0 {
+        return Ok((vec![], vec![]));
+    }
+    let g_rho = level.pull_back(back_projection(level, frozen), model.decoder_shape());
+    let (_, guess) = model.decoder.backward(&model.z, &model.w, &model.mask, &g_rho);
+    let mut dirs = vec![guess];
+    if k > 1 {
+        dirs.extend(directions(n, k - 1, Directions::Gaussian, rng).0);
+    }
+    // Gram-Schmidt, guess first; drop directions that vanish.
+    let mut basis: Vec<Vec<f64>> = vec![];
+    for mut v in dirs {
+        for b in &basis {
+            let dot: f64 = v.iter().zip(b).map(|(a, c)| a * c).sum();
+            v.iter_mut().zip(b).for_each(|(a, c)| *a -= dot * c);
+        }
+        let norm = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        if norm > 0.0 && norm.is_finite() {
+            v.iter_mut().for_each(|a| *a /= norm);
+            basis.push(v);
+        }
+    }
+    let d = weight_derivatives(level, model, frozen, &basis, settings.lanes)?;
+    let mut g = vec![0.0; n];
+    for (dk, q) in d.iter().zip(&basis) {
+        g.iter_mut().zip(q).for_each(|(a, b)| *a += dk * b);
+    }
+    Ok(((0..n).collect(), g))
 }
