@@ -1,3 +1,5 @@
+//! Diagnostic: photon mapping against the path tracer order by order on the
+//! paper rig at 64^3. `cargo run --release --example orders -- [photons] [radius_voxels] [path_spp] [spp]`
 use dualphoton::render::metrics::{block_rel_rmse, rel_mean_diff};
 use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::{render_photon, Image};

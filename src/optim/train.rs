@@ -585,7 +585,13 @@ fn back_projection(level: &Level, frozen: &Frozen) -> Vec<f64> {
 /// [`WeightDirections::Guided`]: the projection of `dL/dw` onto a guessed
 /// direction and `weight_directions - 1` random ones, from exact forward-mode
 /// directional derivatives.
-fn guided_weight_gradient(level: &Level, model: &Model, frozen: &Frozen, settings: &TrainSettings, rng: &mut Rng) -> Result<Sparse> {
+fn guided_weight_gradient(
+    level: &Level,
+    model: &Model,
+    frozen: &Frozen,
+    settings: &TrainSettings,
+    rng: &mut Rng,
+) -> Result<Sparse> {
     let n = model.w.len();
     let k = settings.weight_directions.min(n);
     if k == 0 {
