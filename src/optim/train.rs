@@ -507,11 +507,16 @@ fn random_weight_gradient(
     }
     let (dirs, factor) = directions(n, k, kind, rng);
     let d = weight_derivatives(level, model, frozen, &dirs, settings.lanes)?;
-    let mut g = vec![0.0; n];
-    for (dk, dir) in d.iter().zip(&dirs) {
+    Ok(((0..n).collect(), combine(&dirs, &d, factor)))
+}
+
+/// `factor * Σ_k d_k dirs_k`: a gradient estimate from directional derivatives.
+fn combine(dirs: &[Vec<f64>], d: &[f64], factor: f64) -> Vec<f64> {
+    let mut g = vec![0.0; dirs.first().map_or(0, |v| v.len())];
+    for (dk, dir) in d.iter().zip(dirs) {
         g.iter_mut().zip(dir).for_each(|(a, b)| *a += factor * dk * b);
     }
-    Ok(((0..n).collect(), g))
+    g
 }
 
 /// K random directions over `n` coordinates (any K) and the unbiasing factor.
@@ -617,9 +622,5 @@ fn guided_weight_gradient(
         }
     }
     let d = weight_derivatives(level, model, frozen, &basis, settings.lanes)?;
-    let mut g = vec![0.0; n];
-    for (dk, q) in d.iter().zip(&basis) {
-        g.iter_mut().zip(q).for_each(|(a, b)| *a += dk * b);
-    }
-    Ok(((0..n).collect(), g))
+    Ok(((0..n).collect(), combine(&basis, &d, 1.0)))
 }
