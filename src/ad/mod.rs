@@ -54,6 +54,9 @@ pub trait Real:
     }
     /// `(1 - e^{-self * h}) / self`: the integral of `e^{-self t}` over
     /// `t in [0, h]`. Finite for `self = 0` (value `h`) and for huge `self`.
+    /// It divides `Self` by `Self`, whose primal num-dual computes as a
+    /// product with the reciprocal: call it on plain values (as the renderer
+    /// does) where the primal must match `f64` bit for bit.
     fn one_minus_exp_over(self, h: f64) -> Self {
         let x = self.re() * h;
         if x.abs() < 1e-4 {

@@ -25,13 +25,6 @@ pub fn direction_around(n: &Vec3, cos_theta: f64, phi: f64) -> Vec3 {
     (s * (sin_theta * phi.cos()) + t * (sin_theta * phi.sin()) + n * cos_theta).normalize()
 }
 
-/// A direction uniformly distributed in the cone of half-angle `acos(cos_max)`
-/// around `n`, from two uniforms in [0, 1). Its pdf is `1 / cone_solid_angle(cos_max)`.
-pub fn sample_cone(n: &Vec3, cos_max: f64, u1: f64, u2: f64) -> Vec3 {
-    let cos_theta = 1.0 - u1 * (1.0 - cos_max);
-    direction_around(n, cos_theta, 2.0 * PI * u2)
-}
-
 /// Solid angle (sr) of a cone whose half-angle has cosine `cos_max`.
 pub fn cone_solid_angle(cos_max: f64) -> f64 {
     2.0 * PI * (1.0 - cos_max)

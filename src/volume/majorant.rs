@@ -68,11 +68,6 @@ impl Majorant {
         (0..mark.len()).filter(|&v| mark[v]).collect()
     }
 
-    /// The largest bound of all blocks.
-    pub fn global_max(&self) -> f64 {
-        self.max.iter().fold(0.0, |a, &b| a.max(b))
-    }
-
     /// The box spanned by the blocks with a non-zero bound, or `None` if all are empty.
     pub fn occupied_bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut lo = [usize::MAX; 3];
