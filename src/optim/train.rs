@@ -14,12 +14,12 @@
 //!   approximate learning for `rev-sub`), then the decoder's own
 //!   vector-Jacobian product: exact (or unbiased) for latent and weights.
 
-use crate::ad::dual::with_tangents;
-use crate::ad::Real;
+use super::level::Level;
+use super::param_grad;
 use crate::error::Result;
-use crate::grad::forward::{directional, random_directions, Directions};
+use crate::grad::forward::Directions;
 use crate::grad::loss::mse;
-use crate::grad::reverse::{reverse_gradient, Subset};
+use crate::grad::reverse::Subset;
 use crate::grad::Estimator;
 use crate::model::Decoder;
 use crate::optim::adam::Adam;
@@ -28,7 +28,6 @@ use crate::render::Image;
 use crate::rng::{Purpose, Rng};
 use crate::scene::Scene;
 use crate::volume::Grid;
-use num_dual::DualSVec64;
 use std::time::Instant;
 
 /// How the decoder weights get their directional derivatives in forward mode.
@@ -41,11 +40,7 @@ pub enum WeightDirections {
     Orthonormal,
     /// A guessed direction first, then random ones, orthonormalised; the
     /// step is the exact projection of the gradient onto their span
-    /// (`Σ (g·q) q`: biased, but always a descent direction). The guess is
-    /// the decoder's vector-Jacobian product of the image residuals
-    /// back-projected along the camera rays (attenuated, not differentiated
-    /// through the renderer): cheap, and far better aligned with the
-    /// gradient than a random direction in 31,000 dimensions.
+    /// ([`param_grad::weights_guided`]).
     Guided,
 }
 
@@ -187,118 +182,6 @@ pub fn rel_rmse(ours: &[f64], reference: &[f64]) -> f64 {
     }
 }
 
-/// One resolution the loop renders at.
-struct Level {
-    /// Scene at this resolution (its density is replaced every update).
-    scene: Scene,
-    /// Training targets at this resolution.
-    targets: Vec<Image>,
-    /// Held-out targets at this resolution.
-    held_out: Vec<Image>,
-    /// True if densities are the decoder's grid averaged over 2x2x2 blocks.
-    pooled: bool,
-    /// Where the density may be non-zero (the hull, pooled like the density).
-    support: Grid<f64>,
-}
-
-impl Level {
-    fn full(problem: &Problem, mask: &[bool]) -> Level {
-        let d = &problem.scene.density;
-        let support = Grid::new(d.lo, d.hi, d.shape, mask.iter().map(|&m| f64::from(u8::from(m))).collect());
-        Level {
-            scene: problem.scene.clone(),
-            targets: problem.targets.to_vec(),
-            held_out: problem.held_out.to_vec(),
-            pooled: false,
-            support,
-        }
-    }
-
-    /// Half resolution, or `None` if a grid or image edge is odd or too small.
-    fn half(problem: &Problem, mask: &[bool]) -> Option<Level> {
-        let full = Level::full(problem, mask);
-        let even = |n: usize| n % 2 == 0 && n >= 8;
-        if !full.scene.density.shape.iter().all(|&n| even(n))
-            || !full.scene.cameras.iter().all(|c| even(c.width) && even(c.height))
-        {
-            return None;
-        }
-        let mut scene = full.scene.clone();
-        scene.density = pool(&full.scene.density);
-        for c in &mut scene.cameras {
-            c.width /= 2;
-            c.height /= 2;
-        }
-        let support = pool(&full.support);
-        Some(Level {
-            scene,
-            targets: full.targets.iter().map(halve).collect(),
-            held_out: full.held_out.iter().map(halve).collect(),
-            pooled: true,
-            support,
-        })
-    }
-
-    /// The density this level renders, from the decoder's grid values.
-    fn grid<R: Real>(&self, fine: Grid<R>) -> Grid<R> {
-        if self.pooled {
-            pool(&fine)
-        } else {
-            fine
-        }
-    }
-
-    /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.
-    fn pull_back(&self, grad: Vec<f64>, fine_shape: [usize; 3]) -> Vec<f64> {
-        if !self.pooled {
-            return grad;
-        }
-        let [nz, ny, nx] = fine_shape;
-        let (cy, cx) = (ny / 2, nx / 2);
-        let mut out = vec![0.0; nz * ny * nx];
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    out[(k * ny + j) * nx + i] = grad[((k / 2) * cy + j / 2) * cx + i / 2] * 0.125;
-                }
-            }
-        }
-        out
-    }
-}
-
-/// The 2x2x2 block means of an even-shaped grid (same box).
-pub fn pool<R: Real>(g: &Grid<R>) -> Grid<R> {
-    let [nz, ny, nx] = g.shape;
-    let (cz, cy, cx) = (nz / 2, ny / 2, nx / 2);
-    let mut data = Vec::with_capacity(cz * cy * cx);
-    for k in 0..cz {
-        for j in 0..cy {
-            for i in 0..cx {
-                let mut s = R::cst(0.0);
-                for c in 0..8 {
-                    s += g.data[g.index(2 * k + (c >> 2), 2 * j + ((c >> 1) & 1), 2 * i + (c & 1))];
-                }
-                data.push(s * 0.125);
-            }
-        }
-    }
-    Grid::new(g.lo, g.hi, [cz, cy, cx], data)
-}
-
-/// The 2x2 block means of an even-sized image: what a camera of half the resolution sees.
-pub fn halve(im: &Image) -> Image {
-    let (w, h) = (im.width / 2, im.height / 2);
-    let mut data = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let at = |dx: usize, dy: usize| im.data[(2 * y + dy) * im.width + 2 * x + dx];
-            data.push(0.25 * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)));
-        }
-    }
-    Image { width: w, height: h, data }
-}
-
 /// Trains `model` in place; `observe(row, model, images)` sees every log row
 /// with the model before the update and this update's rendered images.
 pub fn train(
@@ -321,11 +204,8 @@ pub fn train(
             _ => &fine,
         };
         let decoded = model.density(&problem.scene.density);
-        let mut scene = level.scene.clone();
-        scene.density = level.grid(decoded.clone());
-        scene.render.photons = settings.photons;
-        scene.render.spp = settings.spp;
-        scene.render.seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
+        let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
+        let scene = level.scene_at(&decoded, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
         let row = log_row(it, problem, level, model, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
@@ -372,6 +252,7 @@ fn log_row(
 /// (indices, gradient) pairs for the latent and for the weights.
 type Sparse = (Vec<usize>, Vec<f64>);
 
+/// This update's gradient estimate by the settings' estimator.
 fn gradient(
     level: &Level,
     model: &Model,
@@ -380,7 +261,9 @@ fn gradient(
     rng: &mut Rng,
     next_weight: &mut usize,
 ) -> Result<(Sparse, Sparse)> {
-    let all = |n: usize| (0..n).collect::<Vec<_>>();
+    let dense = |g: Vec<f64>| ((0..g.len()).collect::<Vec<_>>(), g);
+    let k = settings.weight_directions;
+    let lanes = settings.lanes;
     match settings.estimator {
         Estimator::RevFull | Estimator::RevSub => {
             let subset = if settings.estimator == Estimator::RevFull {
@@ -392,235 +275,32 @@ fn gradient(
                     seed: rng.below(u64::MAX),
                 }
             };
-            let g = reverse_gradient(frozen, &level.targets, subset).grad;
-            let g = level.pull_back(g, model.decoder_shape());
-            let (dz, dw) = model.decoder.backward(&model.z, &model.w, &model.mask, &g);
-            Ok(((all(dz.len()), dz), (all(dw.len()), dw)))
+            let (dz, dw) = param_grad::reverse(level, model, frozen, subset);
+            Ok((dense(dz), dense(dw)))
         }
         Estimator::FwdFull => {
-            let dz = crate::with_lanes!(settings.lanes, latent_gradient(level, model, frozen));
-            let gw = match settings.weight_mode {
-                WeightDirections::Coordinates => {
-                    let n = model.w.len();
-                    let idx: Vec<usize> =
-                        (0..settings.weight_directions.min(n)).map(|k| (*next_weight + k) % n).collect();
-                    *next_weight = (*next_weight + idx.len()) % n.max(1);
-                    let dirs: Vec<Vec<f64>> = idx
-                        .iter()
-                        .map(|&i| {
-                            let mut e = vec![0.0; n];
-                            e[i] = 1.0;
-                            e
-                        })
-                        .collect();
-                    let d = weight_derivatives(level, model, frozen, &dirs, settings.lanes)?;
-                    (idx, d)
+            let dz = param_grad::latent_exact(level, model, frozen, lanes)?;
+            let gw = match (k, settings.weight_mode) {
+                (0, _) => (vec![], vec![]),
+                (_, WeightDirections::Coordinates) => {
+                    param_grad::weights_coordinates(level, model, frozen, k, lanes, next_weight)?
                 }
-                WeightDirections::Orthonormal => {
-                    random_weight_gradient(level, model, frozen, settings, Directions::Orthonormal, rng)?
+                (_, WeightDirections::Orthonormal) => {
+                    dense(param_grad::weights_random(level, model, frozen, k, Directions::Orthonormal, lanes, rng)?)
                 }
-                WeightDirections::Guided => guided_weight_gradient(level, model, frozen, settings, rng)?,
+                (_, WeightDirections::Guided) => {
+                    dense(param_grad::weights_guided(level, model, frozen, k, lanes, rng)?)
+                }
             };
-            Ok(((all(dz.len()), dz), gw))
+            Ok((dense(dz), gw))
         }
         Estimator::FwdRand => {
-            let dz = random_latent_gradient(level, model, frozen, settings, rng)?;
-            let gw = random_weight_gradient(level, model, frozen, settings, Directions::Gaussian, rng)?;
-            Ok(((all(dz.len()), dz), gw))
+            let dz = param_grad::latent_random(level, model, frozen, lanes, Directions::Gaussian, rng)?;
+            let gw = match k {
+                0 => (vec![], vec![]),
+                _ => dense(param_grad::weights_random(level, model, frozen, k, Directions::Gaussian, lanes, rng)?),
+            };
+            Ok((dense(dz), gw))
         }
     }
-}
-
-/// The decoder's output with K tangents, as the level's grid for the renderer.
-fn tangent_grid<const K: usize>(
-    level: &Level,
-    model: &Model,
-    z: &[DualSVec64<K>],
-    w: &[DualSVec64<K>],
-) -> Grid<DualSVec64<K>> {
-    let d = &level.scene.density;
-    let shape = model.decoder_shape();
-    level.grid(Grid::new(d.lo, d.hi, shape, model.decoder.forward(z, w, &model.mask)))
-}
-
-/// Exact `dL/dz` from all latent coordinates, K per pass.
-fn latent_gradient<const K: usize>(level: &Level, model: &Model, frozen: &Frozen) -> Vec<f64> {
-    let n = model.z.len();
-    let w: Vec<DualSVec64<K>> = model.w.iter().map(|&v| DualSVec64::from_re(v)).collect();
-    let mut grad = Vec::with_capacity(n);
-    for first in (0..n).step_by(K) {
-        let z: Vec<DualSVec64<K>> = (0..n)
-            .map(|i| {
-                if i >= first && i < first + K {
-                    let mut e = [0.0; K];
-                    e[i - first] = 1.0;
-                    with_tangents(model.z[i], e)
-                } else {
-                    DualSVec64::from_re(model.z[i])
-                }
-            })
-            .collect();
-        let density = tangent_grid(level, model, &z, &w);
-        let (_, d) = directional(frozen, &density, &level.targets);
-        grad.extend_from_slice(&d[..K.min(n - first)]);
-    }
-    grad
-}
-
-/// Directional derivatives of the loss along weight-space directions `dirs`.
-fn weight_derivatives(
-    level: &Level,
-    model: &Model,
-    frozen: &Frozen,
-    dirs: &[Vec<f64>],
-    lanes: usize,
-) -> Result<Vec<f64>> {
-    fn pass<const K: usize>(level: &Level, model: &Model, frozen: &Frozen, dirs: &[Vec<f64>]) -> Vec<f64> {
-        let z: Vec<DualSVec64<K>> = model.z.iter().map(|&v| DualSVec64::from_re(v)).collect();
-        let mut out = vec![];
-        for chunk in dirs.chunks(K) {
-            let w: Vec<DualSVec64<K>> = (0..model.w.len())
-                .map(|i| with_tangents(model.w[i], std::array::from_fn(|k| chunk.get(k).map_or(0.0, |d| d[i]))))
-                .collect();
-            let density = tangent_grid(level, model, &z, &w);
-            let (_, d) = directional(frozen, &density, &level.targets);
-            out.extend_from_slice(&d[..chunk.len()]);
-        }
-        out
-    }
-    Ok(crate::with_lanes!(lanes, pass(level, model, frozen, dirs)))
-}
-
-/// A random-direction estimate of `dL/dw` from `weight_directions` directions.
-fn random_weight_gradient(
-    level: &Level,
-    model: &Model,
-    frozen: &Frozen,
-    settings: &TrainSettings,
-    kind: Directions,
-    rng: &mut Rng,
-) -> Result<Sparse> {
-    let n = model.w.len();
-    let k = settings.weight_directions.min(n);
-    if k == 0 {
-        return Ok((vec![], vec![]));
-    }
-    let (dirs, factor) = directions(n, k, kind, rng);
-    let d = weight_derivatives(level, model, frozen, &dirs, settings.lanes)?;
-    Ok(((0..n).collect(), combine(&dirs, &d, factor)))
-}
-
-/// `factor * Σ_k d_k dirs_k`: a gradient estimate from directional derivatives.
-fn combine(dirs: &[Vec<f64>], d: &[f64], factor: f64) -> Vec<f64> {
-    let mut g = vec![0.0; dirs.first().map_or(0, |v| v.len())];
-    for (dk, dir) in d.iter().zip(dirs) {
-        g.iter_mut().zip(dir).for_each(|(a, b)| *a += factor * dk * b);
-    }
-    g
-}
-
-/// K random directions over `n` coordinates (any K) and the unbiasing factor.
-fn directions(n: usize, k: usize, kind: Directions, rng: &mut Rng) -> (Vec<Vec<f64>>, f64) {
-    let mut dirs = vec![];
-    for _ in 0..k.div_ceil(16) {
-        dirs.extend(random_directions::<16>(n, kind, rng).0);
-    }
-    dirs.truncate(k);
-    // Orthonormal blocks of 16 are independent of each other; E[q q^T] = I/n for each, so n/K stays unbiased.
-    let factor = match kind {
-        Directions::Gaussian => 1.0 / k as f64,
-        Directions::Orthonormal => n as f64 / k as f64,
-    };
-    (dirs, factor)
-}
-
-/// `fwd-rand` for the latent: K Gaussian directions.
-fn random_latent_gradient(
-    level: &Level,
-    model: &Model,
-    frozen: &Frozen,
-    settings: &TrainSettings,
-    rng: &mut Rng,
-) -> Result<Vec<f64>> {
-    fn pass<const K: usize>(level: &Level, model: &Model, frozen: &Frozen, rng: &mut Rng) -> Vec<f64> {
-        let n = model.z.len();
-        let (dirs, factor) = random_directions::<K>(n, Directions::Gaussian, rng);
-        let z: Vec<DualSVec64<K>> =
-            (0..n).map(|i| with_tangents(model.z[i], std::array::from_fn(|k| dirs[k][i]))).collect();
-        let w: Vec<DualSVec64<K>> = model.w.iter().map(|&v| DualSVec64::from_re(v)).collect();
-        let density = tangent_grid(level, model, &z, &w);
-        let (_, d) = directional(frozen, &density, &level.targets);
-        (0..n).map(|i| factor * (0..K).map(|k| d[k] * dirs[k][i]).sum::<f64>()).collect()
-    }
-    Ok(crate::with_lanes!(settings.lanes, pass(level, model, frozen, rng)))
-}
-
-/// The image residuals of the training cameras back-projected onto the
-/// level's voxels along the pixel-centre rays, attenuated by the camera
-/// transmittance: a guess of `dL/drho` that needs no renderer derivative.
-fn back_projection(level: &Level, frozen: &Frozen) -> Vec<f64> {
-    let d = &level.scene.density;
-    let scale = level.scene.medium.sigma_t_scale;
-    let rays = frozen.camera_rays(d, None);
-    let mut g = vec![0.0; d.len()];
-    for (c, target) in level.targets.iter().enumerate() {
-        let cam = &level.scene.cameras[c];
-        for p in 0..cam.pixels() {
-            let r = frozen.images[c].data[p] - target.data[p];
-            if r == 0.0 {
-                continue;
-            }
-            let ray = cam.ray((p % cam.width) as f64 + 0.5, (p / cam.width) as f64 + 0.5);
-            let mut t = 1.0;
-            rays.marcher.steps(&ray, f64::INFINITY, 0.5, |s| {
-                let x = ray.at(s.sample);
-                if let Some(st) = d.stencil(&x) {
-                    for k in 0..8 {
-                        g[st.index[k]] += r * t * s.h * st.weight[k];
-                    }
-                }
-                t *= (-d.at(&x) * scale * s.h).exp();
-                t > 1e-6
-            });
-        }
-    }
-    g
-}
-
-/// [`WeightDirections::Guided`]: the projection of `dL/dw` onto a guessed
-/// direction and `weight_directions - 1` random ones, from exact forward-mode
-/// directional derivatives.
-fn guided_weight_gradient(
-    level: &Level,
-    model: &Model,
-    frozen: &Frozen,
-    settings: &TrainSettings,
-    rng: &mut Rng,
-) -> Result<Sparse> {
-    let n = model.w.len();
-    let k = settings.weight_directions.min(n);
-    if k == 0 {
-        return Ok((vec![], vec![]));
-    }
-    let g_rho = level.pull_back(back_projection(level, frozen), model.decoder_shape());
-    let (_, guess) = model.decoder.backward(&model.z, &model.w, &model.mask, &g_rho);
-    let mut dirs = vec![guess];
-    if k > 1 {
-        dirs.extend(directions(n, k - 1, Directions::Gaussian, rng).0);
-    }
-    // Gram-Schmidt, guess first; drop directions that vanish.
-    let mut basis: Vec<Vec<f64>> = vec![];
-    for mut v in dirs {
-        for b in &basis {
-            let dot: f64 = v.iter().zip(b).map(|(a, c)| a * c).sum();
-            v.iter_mut().zip(b).for_each(|(a, c)| *a -= dot * c);
-        }
-        let norm = v.iter().map(|a| a * a).sum::<f64>().sqrt();
-        if norm > 0.0 && norm.is_finite() {
-            v.iter_mut().for_each(|a| *a /= norm);
-            basis.push(v);
-        }
-    }
-    let d = weight_derivatives(level, model, frozen, &basis, settings.lanes)?;
-    Ok(((0..n).collect(), combine(&basis, &d, 1.0)))
 }

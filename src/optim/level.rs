@@ -1,0 +1,133 @@
+//! Resolutions of the training loop: the problem's own, and half of it
+//! (grid and images pooled 2x) for the coarse updates.
+
+use super::train::Problem;
+use crate::ad::Real;
+use crate::render::Image;
+use crate::scene::Scene;
+use crate::volume::Grid;
+
+/// One resolution the training loop renders at.
+pub struct Level {
+    /// Scene at this resolution (its density is replaced every update).
+    pub scene: Scene,
+    /// Training targets at this resolution.
+    pub targets: Vec<Image>,
+    /// Held-out targets at this resolution.
+    pub held_out: Vec<Image>,
+    /// True if densities are the decoder's grid averaged over 2x2x2 blocks.
+    pooled: bool,
+    /// Where the density may be non-zero (the hull, pooled like the density).
+    pub support: Grid<f64>,
+}
+
+impl Level {
+    /// The problem's own resolution.
+    pub fn full(problem: &Problem, mask: &[bool]) -> Level {
+        let d = &problem.scene.density;
+        let support = Grid::new(d.lo, d.hi, d.shape, mask.iter().map(|&m| f64::from(u8::from(m))).collect());
+        Level {
+            scene: problem.scene.clone(),
+            targets: problem.targets.to_vec(),
+            held_out: problem.held_out.to_vec(),
+            pooled: false,
+            support,
+        }
+    }
+
+    /// Half resolution, or `None` if a grid or image edge is odd or too small.
+    pub fn half(problem: &Problem, mask: &[bool]) -> Option<Level> {
+        let full = Level::full(problem, mask);
+        let even = |n: usize| n % 2 == 0 && n >= 8;
+        if !full.scene.density.shape.iter().all(|&n| even(n))
+            || !full.scene.cameras.iter().all(|c| even(c.width) && even(c.height))
+        {
+            return None;
+        }
+        let mut scene = full.scene.clone();
+        scene.density = pool(&full.scene.density);
+        for c in &mut scene.cameras {
+            c.width /= 2;
+            c.height /= 2;
+        }
+        let support = pool(&full.support);
+        Some(Level {
+            scene,
+            targets: full.targets.iter().map(halve).collect(),
+            held_out: full.held_out.iter().map(halve).collect(),
+            pooled: true,
+            support,
+        })
+    }
+
+    /// The density this level renders, from the decoder's grid values.
+    pub fn grid<R: Real>(&self, fine: Grid<R>) -> Grid<R> {
+        if self.pooled {
+            pool(&fine)
+        } else {
+            fine
+        }
+    }
+
+    /// This level's scene at the decoder's grid `decoded`, rendered with
+    /// `photons`, `spp` and `seed`; freeze it with
+    /// `Frozen::new(&scene, Some(&level.support))`.
+    pub fn scene_at(&self, decoded: &Grid<f64>, photons: u64, spp: u32, seed: u64) -> Scene {
+        let mut scene = self.scene.clone();
+        scene.density = self.grid(decoded.clone());
+        scene.render.photons = photons;
+        scene.render.spp = spp;
+        scene.render.seed = seed;
+        scene
+    }
+
+    /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.
+    pub fn pull_back(&self, grad: Vec<f64>, fine_shape: [usize; 3]) -> Vec<f64> {
+        if !self.pooled {
+            return grad;
+        }
+        let [nz, ny, nx] = fine_shape;
+        let (cy, cx) = (ny / 2, nx / 2);
+        let mut out = vec![0.0; nz * ny * nx];
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    out[(k * ny + j) * nx + i] = grad[((k / 2) * cy + j / 2) * cx + i / 2] * 0.125;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The 2x2x2 block means of an even-shaped grid (same box).
+pub fn pool<R: Real>(g: &Grid<R>) -> Grid<R> {
+    let [nz, ny, nx] = g.shape;
+    let (cz, cy, cx) = (nz / 2, ny / 2, nx / 2);
+    let mut data = Vec::with_capacity(cz * cy * cx);
+    for k in 0..cz {
+        for j in 0..cy {
+            for i in 0..cx {
+                let mut s = R::cst(0.0);
+                for c in 0..8 {
+                    s += g.data[g.index(2 * k + (c >> 2), 2 * j + ((c >> 1) & 1), 2 * i + (c & 1))];
+                }
+                data.push(s * 0.125);
+            }
+        }
+    }
+    Grid::new(g.lo, g.hi, [cz, cy, cx], data)
+}
+
+/// The 2x2 block means of an even-sized image: what a camera of half the resolution sees.
+pub fn halve(im: &Image) -> Image {
+    let (w, h) = (im.width / 2, im.height / 2);
+    let mut data = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let at = |dx: usize, dy: usize| im.data[(2 * y + dy) * im.width + 2 * x + dx];
+            data.push(0.25 * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)));
+        }
+    }
+    Image { width: w, height: h, data }
+}
