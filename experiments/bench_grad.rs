@@ -10,7 +10,7 @@ use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::grad::forward::{coordinate_gradient, random_gradient, Directions};
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
-use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::io::manifest::{git_revision, peak_memory_mib, reset_peak_memory, write_json};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
 use dualphoton::scene::{rig, Scene};
@@ -40,30 +40,16 @@ struct Args {
     smoke: bool,
 }
 
-/// Resets the resident-memory high-water mark (Linux); false if unsupported.
-fn reset_peak() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
-/// The resident-memory high-water mark in MiB (0 if unknown).
-fn peak_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).map(|l| l.to_string()))
-        .and_then(|l| l.split_whitespace().nth(1).and_then(|kb| kb.parse::<f64>().ok()))
-        .map_or(0.0, |kb| kb / 1024.0)
-}
-
 /// Median seconds and peak MiB of `f` over `repeats` runs.
 fn measure(repeats: usize, mut f: impl FnMut()) -> (f64, f64) {
     let mut times = vec![];
     let mut peak = 0.0f64;
     for _ in 0..repeats.max(1) {
-        reset_peak();
+        reset_peak_memory();
         let t = Instant::now();
         f();
         times.push(t.elapsed().as_secs_f64());
-        peak = peak.max(peak_mib());
+        peak = peak.max(peak_memory_mib());
     }
     times.sort_by(|a, b| a.total_cmp(b));
     (times[times.len() / 2], peak)
@@ -175,7 +161,7 @@ fn run(mut args: Args) -> Result<()> {
     write_json(
         &args.out.join("manifest.json"),
         &json!({"res": args.res, "repeats": args.repeats, "directions": args.directions, "threads": rayon::current_num_threads(),
-                "git": git_revision(), "seconds": started.elapsed().as_secs_f64(), "peak_reset_supported": reset_peak()}),
+                "git": git_revision(), "seconds": started.elapsed().as_secs_f64(), "peak_reset_supported": reset_peak_memory()}),
     )?;
     print!("{md}");
     Ok(())

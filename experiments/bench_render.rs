@@ -13,20 +13,22 @@
 //!
 //! `--smoke` runs a tiny version (for tests of this binary).
 
+#[path = "common/reference.rs"]
+mod reference;
+
 use clap::Parser;
 use dualphoton::error::Result;
 use dualphoton::io::manifest::{git_revision, write_json};
-use dualphoton::io::npy;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::render::metrics::{block_rel_rmse, reference_noise, rel_mean_diff};
-use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::photon::Timings;
-use dualphoton::render::{render_photon, Image, PhotonRender};
+use dualphoton::render::{render_photon, PhotonRender};
 use dualphoton::scene::{rig, Scene};
 use dualphoton::volume::plume::plume;
+use reference::{reference, REF_SEED};
 use serde_json::json;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -55,9 +57,8 @@ struct Args {
     smoke: bool,
 }
 
-/// Seed of the plume and of the reference.
+/// Seed of the plume.
 const SEED: u64 = 0;
-const REF_SEED: u64 = 1234;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
@@ -68,62 +69,6 @@ fn training_scene(res: usize) -> Scene {
     let mut scene = rig::paper_scene(plume(res, SEED), res);
     scene.cameras.truncate(4);
     scene
-}
-
-struct Reference {
-    radiance: Vec<Image>,
-    std_err: Vec<Image>,
-}
-
-/// Loads the reference of `dir` if it was made with `spp`, else renders and saves it.
-fn reference(scene: &Scene, spp: u32, dir: &Path) -> Result<Reference> {
-    let manifest_path = dir.join("manifest.json");
-    // The density's bits name it: a changed plume generator invalidates the reference.
-    let fingerprint = scene
-        .density
-        .data
-        .iter()
-        .fold(0xcbf2_9ce4_8422_2325u64, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100_0000_01b3));
-    let wanted = json!({"spp": spp, "seed": REF_SEED, "plume_seed": SEED, "res": scene.density.shape[0],
-                        "max_order": scene.medium.max_order, "density_fnv1a": format!("{fingerprint:016x}")});
-    if let Ok(text) = std::fs::read_to_string(&manifest_path) {
-        if let Ok(m) = serde_json::from_str::<serde_json::Value>(&text) {
-            if m.get("key") == Some(&wanted) {
-                let load = |name: String| -> Result<Image> {
-                    let a = npy::read(&dir.join(name), "reference")?;
-                    Ok(Image { width: a.shape[1], height: a.shape[0], data: a.data })
-                };
-                let n = scene.cameras.len();
-                return Ok(Reference {
-                    radiance: (0..n).map(|c| load(format!("cam{c}.npy"))).collect::<Result<_>>()?,
-                    std_err: (0..n).map(|c| load(format!("cam{c}_stderr.npy"))).collect::<Result<_>>()?,
-                });
-            }
-        }
-    }
-    std::fs::create_dir_all(dir)?;
-    let start = Instant::now();
-    let opts = PathOptions { spp, seed: REF_SEED, max_order: None, min_order: 1 };
-    let progress = |done: usize, total: usize| {
-        let t = start.elapsed().as_secs_f64();
-        eprint!(
-            "\r  reference: {done}/{total} pixels, {t:.0} s, ETA {:.0} s   ",
-            t * (total - done) as f64 / done.max(1) as f64
-        );
-    };
-    let r = render_path_with_progress(scene, &opts, &progress);
-    eprintln!();
-    let seconds = start.elapsed().as_secs_f64();
-    for (c, (im, se)) in r.radiance.iter().zip(&r.std_err).enumerate() {
-        npy::write_f32(&dir.join(format!("cam{c}.npy")), &[im.height, im.width], &im.data)?;
-        npy::write_f32(&dir.join(format!("cam{c}_stderr.npy")), &[se.height, se.width], &se.data)?;
-    }
-    let noise = reference_noise(&r.radiance, &r.std_err, 4);
-    write_json(
-        &manifest_path,
-        &json!({"key": wanted, "seconds": seconds, "samples": r.samples, "block_noise": noise, "git": git_revision()}),
-    )?;
-    Ok(Reference { radiance: r.radiance, std_err: r.std_err })
 }
 
 /// The last of `repeats` renders, and the stage times of all of them.
@@ -185,7 +130,7 @@ fn run(mut args: Args) -> Result<()> {
         let spp = args.ref_spp.get(n).copied().unwrap_or(4096);
         let scene = training_scene(res);
         eprintln!("res {res}: reference at {spp} spp");
-        let reference = reference(&scene, spp, &args.out.join(format!("reference_{res}")))?;
+        let reference = reference(&scene, SEED, spp, &args.out.join(format!("reference_{res}")))?;
         let noise = reference_noise(&reference.radiance, &reference.std_err, 4);
         let voxel = scene.density.voxel_size().max();
 

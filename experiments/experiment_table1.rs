@@ -6,11 +6,11 @@ use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, write_json};
-use dualphoton::optim::reconstruct::{hull_stats, pearson, reconstruct, write_outputs, ReconstructSettings};
+use dualphoton::optim::reconstruct::{
+    hull_stats, paper_problem, pearson, reconstruct, write_outputs, PaperProblem, ReconstructSettings,
+};
 use dualphoton::optim::train::{rel_l1, rel_rmse, TrainSettings, WeightDirections};
-use dualphoton::render::render_photon;
 use dualphoton::scene::{file, rig};
-use dualphoton::volume::plume::plume;
 use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -89,14 +89,14 @@ fn run(mut args: Args) -> Result<()> {
     let estimator: Estimator = args.estimator.parse()?;
 
     // Ground truth and its images (more photons and samples than a training update).
-    let truth = plume(args.res, args.seed);
-    let mut scene = rig::paper_scene(truth.clone(), args.res);
-    scene.render.photons = if args.smoke { 20_000 } else { 1_000_000 };
+    let target_photons = if args.smoke { 20_000 } else { 1_000_000 };
+    eprintln!("rendering the ground truth ({target_photons} photons) ...");
+    let PaperProblem { truth, mut scene, images } = paper_problem(args.res, args.seed, target_photons);
+    // The saved scene renders the targets as they were made.
+    scene.render.photons = target_photons;
     scene.render.spp = 8;
     scene.render.seed = args.seed.wrapping_add(4242);
     file::save(&scene, &args.out, "scene")?;
-    eprintln!("rendering the ground truth ({} cameras, {} photons) ...", scene.cameras.len(), scene.render.photons);
-    let images = render_photon(&scene).images;
     let (targets, held_out) = images.split_at(rig::HELD_OUT_CAMERA);
 
     let settings = ReconstructSettings {

@@ -61,3 +61,35 @@ fn benchmarks_run_at_smoke_size() {
         assert!(dir.join("summary.md").exists() && dir.join("manifest.json").exists());
     }
 }
+
+#[test]
+fn stability_study_passes_every_case_at_smoke_size() {
+    let dir = std::env::temp_dir().join(format!("dualphoton-stability-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new(env!("CARGO_BIN_EXE_stability"))
+        .args(["--smoke", "--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for f in ["report.csv", "summary.md", "fd_error.svg", "manifest.json"] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let mut report = csv::Reader::from_path(dir.join("report.csv")).unwrap();
+    let header = report.headers().unwrap().clone();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+    for name in ["case", "passed", "values_finite", "derivatives_finite", "fd_rel_error", "seconds", "note"] {
+        column(name);
+    }
+    let rows: Vec<csv::StringRecord> = report.records().map(|r| r.unwrap()).collect();
+    // One row per case, each printed as one progress line.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let progress = stderr.lines().filter(|l| l.starts_with("ok ") || l.starts_with("FAIL ")).count();
+    assert_eq!(rows.len(), progress, "rows and progress lines differ");
+    let cases: Vec<&str> = rows.iter().map(|r| &r[column("case")]).collect();
+    for case in ["optical depth 1e4", "zero density", "albedo 1", "g 0.9999", "zero photons", "invalid: g = 1"] {
+        assert!(cases.contains(&case), "no row for {case}");
+    }
+    for r in &rows {
+        assert_eq!(&r[column("passed")], "true", "{} failed: {}", &r[column("case")], &r[column("note")]);
+    }
+}

@@ -1,5 +1,5 @@
 //! Run manifests: what produced a result (settings, seed, git revision,
-//! wall time), written beside it as JSON (STYLE.md habit 6).
+//! wall time, peak memory), written beside it as JSON (STYLE.md habit 6).
 
 use crate::error::{Error, Result};
 use serde_json::Value;
@@ -32,4 +32,19 @@ pub fn git_revision() -> String {
 pub fn write_json(path: &Path, value: &Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value).map_err(|e| Error(e.to_string()))?;
     std::fs::write(path, text + "\n").map_err(|e| Error(format!("cannot write {}: {e}", path.display())))
+}
+
+/// Resets the process's resident-memory high-water mark (Linux, through
+/// /proc/self/clear_refs); false if unsupported.
+pub fn reset_peak_memory() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// The process's resident-memory high-water mark (VmHWM) in MiB, 0 if unknown.
+pub fn peak_memory_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).map(|l| l.to_string()))
+        .and_then(|l| l.split_whitespace().nth(1).and_then(|kb| kb.parse::<f64>().ok()))
+        .map_or(0.0, |kb| kb / 1024.0)
 }

@@ -7,8 +7,9 @@ use crate::error::{Error, Result};
 use crate::io::{figures, npy};
 use crate::model::Decoder;
 use crate::render::{render_photon, Image};
-use crate::scene::Scene;
+use crate::scene::{rig, Scene};
 use crate::volume::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
+use crate::volume::plume::plume;
 use crate::volume::Grid;
 use std::io::Write as _;
 use std::path::Path;
@@ -78,6 +79,50 @@ pub struct ReconstructSettings {
     pub init_seed: u64,
 }
 
+/// The main job's problem: the built-in plume (ground truth), the paper
+/// rig around it, and the images of all its cameras rendered with
+/// `photons` and 8 samples per pixel (more than a training update uses).
+pub struct PaperProblem {
+    /// Ground-truth density.
+    pub truth: Grid<f64>,
+    /// The rig with the ground truth; its render settings are the defaults.
+    pub scene: Scene,
+    /// Images of every camera: `..rig::HELD_OUT_CAMERA` train, the rest are held out.
+    pub images: Vec<Image>,
+}
+
+/// [`PaperProblem`] at `res`^3 from `seed`.
+pub fn paper_problem(res: usize, seed: u64, photons: u64) -> PaperProblem {
+    let truth = plume(res, seed);
+    let scene = rig::paper_scene(truth.clone(), res);
+    let mut target = scene.clone();
+    target.render.photons = photons;
+    target.render.spp = 8;
+    target.render.seed = seed.wrapping_add(4242);
+    let images = render_photon(&target).images;
+    PaperProblem { truth, scene, images }
+}
+
+/// The model before training: the visual hull of the training cameras
+/// (the first `targets.len()` of the scene's) as its mask, a decoder for the
+/// scene's cubic grid, latent and weights initialised from `init_seed`.
+pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result<Model> {
+    let n_train = targets.len();
+    let mask =
+        visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
+    if !mask.iter().any(|&m| m) {
+        return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
+    }
+    let res = scene.density.shape[0];
+    if scene.density.shape != [res, res, res] {
+        return Err(Error(format!("volume.density: the decoder needs a cubic grid, got {:?}", scene.density.shape)));
+    }
+    let decoder = Decoder::paper_small(res);
+    let w = decoder.init(init_seed);
+    let z = decoder.init_latent(init_seed);
+    Ok(Model { decoder, z, w, mask })
+}
+
 /// Reconstructs the density of `scene` (cameras `0..targets.len()` train,
 /// the rest are held out) from `targets` (+ `held_out` images), writing the
 /// log as it goes to `out/log.csv`.
@@ -90,20 +135,7 @@ pub fn reconstruct(
     out: &Path,
     progress: &mut dyn FnMut(&LogRow),
 ) -> Result<Reconstruction> {
-    let n_train = targets.len();
-    let mask =
-        visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
-    if !mask.iter().any(|&m| m) {
-        return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
-    }
-    let res = scene.density.shape[0];
-    if scene.density.shape != [res, res, res] {
-        return Err(Error(format!("volume.density: the decoder needs a cubic grid, got {:?}", scene.density.shape)));
-    }
-    let decoder = Decoder::paper_small(res);
-    let w = decoder.init(settings.init_seed);
-    let z = decoder.init_latent(settings.init_seed);
-    let mut model = Model { decoder, z, w, mask };
+    let mut model = initial_model(scene, targets, settings.init_seed)?;
     let initial = model.density(&scene.density);
 
     let mut log = vec![];

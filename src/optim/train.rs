@@ -74,6 +74,9 @@ pub struct TrainSettings {
     /// Share of the updates made at half resolution (grid and images pooled
     /// 2x) before the full resolution: coarse to fine, about 6x cheaper per update.
     pub coarse_fraction: f64,
+    /// Stop once this many seconds have passed (at most `iterations`
+    /// updates); `coarse_fraction` then applies to the time, not the updates.
+    pub time_budget: Option<f64>,
 }
 
 impl Default for TrainSettings {
@@ -92,6 +95,7 @@ impl Default for TrainSettings {
             subset_paths: 5000,
             seed: 0,
             coarse_fraction: 0.8,
+            time_budget: None,
         }
     }
 }
@@ -199,8 +203,14 @@ pub fn train(
     let mut rng = Rng::new(settings.seed, Purpose::Gradient, 1_000_000);
     let mut next_weight = 0usize;
     for it in 0..settings.iterations {
+        let elapsed = start.elapsed().as_secs_f64();
+        let coarse_now = match settings.time_budget {
+            Some(budget) if elapsed >= budget => break,
+            Some(budget) => elapsed < settings.coarse_fraction * budget,
+            None => it < coarse_updates,
+        };
         let level = match &coarse {
-            Some(c) if it < coarse_updates => c,
+            Some(c) if coarse_now => c,
             _ => &fine,
         };
         let decoded = model.density(&problem.scene.density);

@@ -152,6 +152,12 @@ pub fn load(path: &Path) -> Result<Scene> {
 /// Checks every field of a scene; the error names the first bad one.
 pub fn validate(scene: &Scene) -> Result<()> {
     let d = &scene.density;
+    // `load` checks these while parsing; a scene built in code must pass the same checks.
+    finite3(d.lo.into(), "volume.bbox_min")?;
+    finite3(d.hi.into(), "volume.bbox_max")?;
+    if d.shape.contains(&0) {
+        bail!("volume.density: shape {:?} (Z, Y, X) is empty; every axis must be > 0", d.shape);
+    }
     if (0..3).any(|a| !(d.hi[a] > d.lo[a])) {
         bail!("volume.bbox_max: {:?} must exceed bbox_min {:?} on every axis", d.hi.as_slice(), d.lo.as_slice());
     }
@@ -176,6 +182,7 @@ pub fn validate(scene: &Scene) -> Result<()> {
         bail!("volume.max_order: {} must be in 1..=64", m.max_order);
     }
     for (n, l) in scene.lights.iter().enumerate() {
+        finite3(l.position.into(), &format!("lights[{n}].position"))?;
         if !(l.intensity.is_finite() && l.intensity >= 0.0) {
             bail!("lights[{n}].intensity: {} must be finite and >= 0", l.intensity);
         }
@@ -207,6 +214,9 @@ pub fn validate(scene: &Scene) -> Result<()> {
 }
 
 fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
+    finite3(c.position.into(), &format!("cameras[{n}].position"))?;
+    finite3(c.look_at.into(), &format!("cameras[{n}].look_at"))?;
+    finite3(c.up.into(), &format!("cameras[{n}].up"))?;
     if c.width == 0 || c.height == 0 {
         bail!("cameras[{n}]: image size {}x{} is empty", c.width, c.height);
     }
@@ -283,4 +293,53 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
     };
     let text = serde_json::to_string_pretty(&file).map_err(|e| Error(e.to_string()))?;
     std::fs::write(dir.join(format!("{name}.json")), text + "\n").map_err(|e| Error(format!("cannot write scene: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A valid scene: a 4^3 box of density 0.1, one light, one camera on +z.
+    fn scene() -> Scene {
+        let density = Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [4, 4, 4], vec![0.1; 64]);
+        let camera = Camera {
+            position: Vec3::new(0.0, 0.0, 3.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            fov_y_deg: 30.0,
+            width: 8,
+            height: 8,
+        };
+        Scene {
+            density,
+            medium: Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.6, max_order: 3 },
+            lights: vec![Light { position: Vec3::new(2.0, 0.0, 2.0), intensity: 10.0 }],
+            cameras: vec![camera],
+            render: RenderSettings::default(),
+        }
+    }
+
+    fn rejected(scene: &Scene, field: &str) {
+        match validate(scene) {
+            Ok(()) => panic!("{field}: not rejected"),
+            Err(e) => assert!(e.0.starts_with(field), "error does not name {field}: {e}"),
+        }
+    }
+
+    #[test]
+    fn scenes_built_in_code_get_the_checks_load_makes() {
+        assert_eq!(validate(&scene()), Ok(()));
+        let mut s = scene();
+        s.density = Grid::new(s.density.lo, s.density.hi, [0, 4, 4], vec![]);
+        rejected(&s, "volume.density");
+        let mut s = scene();
+        s.density = Grid::new(s.density.lo, Vec3::new(0.5, f64::INFINITY, 0.5), [4, 4, 4], vec![0.1; 64]);
+        rejected(&s, "volume.bbox_max");
+        let mut s = scene();
+        s.lights[0].position.y = f64::NAN;
+        rejected(&s, "lights[0].position");
+        let mut s = scene();
+        s.cameras[0].position.x = f64::NAN;
+        rejected(&s, "cameras[0].position");
+    }
 }

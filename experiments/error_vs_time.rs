@@ -1,0 +1,297 @@
+//! Error against run time (issue 5, item 2).
+//!
+//! 1. Reconstruction: the main job's training, the same wall-clock budget
+//!    for every estimator (coarse to fine by time: the first 80 % of the
+//!    budget at half resolution), density error epsilon and held-out camera
+//!    error logged against wall time, plus a final high-quality evaluation.
+//! 2. Renderer: photon mapping's error against the path-traced reference
+//!    over photon counts and kernel radii, next to the path tracer itself at
+//!    low sample counts (equal-time comparison).
+//!
+//! Writes `results/error_vs_time/{reconstruction.csv, reconstruction_final.csv,
+//! renderer.csv, *.svg, summary.md, manifest.json}`.
+
+#[path = "common/reference.rs"]
+mod reference;
+
+use clap::Parser;
+use dualphoton::error::{Error, Result};
+use dualphoton::grad::Estimator;
+use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::io::plot::{line_chart, Axes, Series};
+use dualphoton::optim::reconstruct::{initial_model, paper_problem, pearson, PaperProblem};
+use dualphoton::optim::train::{rel_l1, rel_rmse, train, LogRow, Problem, TrainSettings};
+use dualphoton::render::metrics::{block_rel_rmse, reference_noise};
+use dualphoton::render::path::{render_path, PathOptions};
+use dualphoton::render::render_photon;
+use dualphoton::scene::rig;
+use reference::reference;
+use serde_json::json;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(about = "Reconstruction error and renderer error against wall-clock time")]
+struct Args {
+    /// Grid resolution (res^3) and image size (res x res).
+    #[arg(long, default_value_t = 64)]
+    res: usize,
+    /// Wall-clock budget of each training run, seconds.
+    #[arg(long, default_value_t = 200.0)]
+    budget: f64,
+    /// Estimators to train with.
+    #[arg(long, value_delimiter = ',', default_value = "fwd-full,fwd-rand,rev-sub,rev-full")]
+    estimators: Vec<String>,
+    /// Photon counts of the renderer sweep.
+    #[arg(long, value_delimiter = ',', default_value = "30000,100000,300000,1000000")]
+    photons: Vec<u64>,
+    /// Kernel radii of the renderer sweep, in voxels.
+    #[arg(long, value_delimiter = ',', default_value = "0.5,1,2")]
+    radii: Vec<f64>,
+    /// Samples per pixel of the path tracer's own points.
+    #[arg(long, value_delimiter = ',', default_value = "16,64,256,1024")]
+    path_spp: Vec<u32>,
+    /// Samples per pixel of the path-traced reference.
+    #[arg(long, default_value_t = 16384)]
+    ref_spp: u32,
+    /// Where the reference is cached (shared with bench_render).
+    #[arg(long, default_value = "results/bench_render/reference_64")]
+    reference_dir: PathBuf,
+    /// Timed repeats per renderer configuration (median reported).
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    /// Seed of the plume, the model and the training.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output directory.
+    #[arg(long, default_value = "results/error_vs_time")]
+    out: PathBuf,
+    /// A tiny run (16^3, seconds of budget) to check that everything works.
+    #[arg(long)]
+    smoke: bool,
+}
+
+fn main() -> std::process::ExitCode {
+    dualphoton::error::exit_code(run(Args::parse()))
+}
+
+fn run(mut args: Args) -> Result<()> {
+    if args.smoke {
+        args.res = 16;
+        args.budget = 3.0;
+        args.photons = vec![5_000, 20_000];
+        args.radii = vec![1.0];
+        args.path_spp = vec![4, 16];
+        args.ref_spp = 256;
+        args.repeats = 1;
+        args.reference_dir = args.out.join("reference_16");
+    }
+    if !(args.budget > 0.0 && args.budget.is_finite()) {
+        return Err(Error(format!("--budget: {} is not a positive number of seconds", args.budget)));
+    }
+    let estimators: Vec<Estimator> = args.estimators.iter().map(|e| e.parse()).collect::<Result<_>>()?;
+    std::fs::create_dir_all(&args.out)?;
+    let started = Instant::now();
+    let mut summary = format!(
+        "# Error against run time ({}^3 paper rig, {} threads)\n\nRegenerate: `cargo run --release --bin error_vs_time`.\n\n",
+        args.res,
+        rayon::current_num_threads()
+    );
+    reconstruction(&args, &estimators, &mut summary)?;
+    renderer(&args, &mut summary)?;
+    let _ = writeln!(summary, "\nWall time of the whole study: {:.0} s.", started.elapsed().as_secs_f64());
+    std::fs::write(args.out.join("summary.md"), &summary)?;
+    write_json(
+        &args.out.join("manifest.json"),
+        &json!({"res": args.res, "budget_s": args.budget, "estimators": args.estimators, "photons": args.photons,
+                "radii_voxels": args.radii, "path_spp": args.path_spp, "ref_spp": args.ref_spp,
+                "repeats": args.repeats, "seed": args.seed, "threads": rayon::current_num_threads(),
+                "git": git_revision(), "seconds": started.elapsed().as_secs_f64()}),
+    )?;
+    print!("{summary}");
+    Ok(())
+}
+
+/// Part 1: every estimator trains for the same wall-clock budget.
+fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -> Result<()> {
+    let target_photons = if args.smoke { 20_000 } else { 1_000_000 };
+    eprintln!("rendering the targets ...");
+    let PaperProblem { truth, scene, images } = paper_problem(args.res, args.seed, target_photons);
+    let (targets, held_out) = images.split_at(rig::HELD_OUT_CAMERA);
+    let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
+
+    let mut log = String::from("estimator,iteration,wall_s,train_loss,held_out_rel_rmse,density_rel_l1\n");
+    let mut finals = String::from("estimator,updates,seconds,density_rel_l1,pearson_r,held_out_rel_rmse\n");
+    let (mut eps_series, mut held_series) = (vec![], vec![]);
+    let _ = writeln!(
+        summary,
+        "## Reconstruction under a {:.0} s budget per estimator\n\n\
+         Same problem, seed and initial model as the main job; training stops when the budget is spent (the first \
+         80 % of it at half resolution). The per-update held-out error comes from that update's own quick render \
+         (50,000 photons, 2 spp, half resolution in the coarse phase), so it carries render noise; the final columns \
+         re-render the last estimate with {target_photons} photons at 8 spp.\n\n\
+         | estimator | updates | final epsilon | final Pearson r | final held-out rel. RMSE |\n|---|---|---|---|---|",
+        args.budget
+    );
+    for &estimator in estimators {
+        let mut model = initial_model(&scene, targets, args.seed)?;
+        let settings = TrainSettings {
+            iterations: usize::MAX,
+            estimator,
+            seed: args.seed,
+            time_budget: Some(args.budget),
+            ..Default::default()
+        };
+        let mut rows: Vec<LogRow> = vec![];
+        train(&problem, &mut model, &settings, &mut |row, _, _| {
+            eprint!(
+                "\r{}: update {}  {:.0}/{:.0} s  eps {:.3}   ",
+                estimator.name(),
+                row.iteration + 1,
+                row.wall_s,
+                args.budget,
+                row.density_rel_l1
+            );
+            rows.push(row.clone());
+        })?;
+        eprintln!();
+        for r in &rows {
+            let _ = writeln!(
+                log,
+                "{},{},{:.3},{:.6e},{:.6},{:.6}",
+                estimator.name(),
+                r.iteration,
+                r.wall_s,
+                r.train_loss,
+                r.held_out_rel_rmse,
+                r.density_rel_l1
+            );
+        }
+        // The final estimate, rendered like the targets.
+        let estimated = model.density(&scene.density);
+        let mut final_scene = scene.clone();
+        final_scene.density = estimated.clone();
+        final_scene.render.photons = target_photons;
+        final_scene.render.spp = 8;
+        final_scene.render.seed = args.seed.wrapping_add(777);
+        let final_images = render_photon(&final_scene).images;
+        let eps = rel_l1(&estimated.data, &truth.data, &model.mask);
+        let r = pearson(&truth.data, &estimated.data, &model.mask);
+        let held = rel_rmse(&final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data);
+        let seconds = rows.last().map_or(0.0, |r| r.wall_s);
+        let _ = writeln!(finals, "{},{},{seconds:.2},{eps:.6},{r:.6},{held:.6}", estimator.name(), rows.len());
+        let _ = writeln!(
+            summary,
+            "| `{}` | {} | {eps:.3} | {r:.3} | {:.1} % |",
+            estimator.name(),
+            rows.len(),
+            100.0 * held
+        );
+        eps_series.push(Series {
+            name: estimator.name().into(),
+            points: rows.iter().map(|r| (r.wall_s, r.density_rel_l1)).collect(),
+            markers: false,
+        });
+        held_series.push(Series {
+            name: estimator.name().into(),
+            points: rows.iter().map(|r| (r.wall_s, 100.0 * r.held_out_rel_rmse)).collect(),
+            markers: false,
+        });
+    }
+    std::fs::write(args.out.join("reconstruction.csv"), log)?;
+    std::fs::write(args.out.join("reconstruction_final.csv"), finals)?;
+    let axes = |title, y| Axes { title, x: "wall-clock time (s, 2 cores)", y, log_x: false, log_y: true };
+    line_chart(
+        &args.out.join("reconstruction_epsilon.svg"),
+        &axes("Density error against training time", "voxel relative L1 error epsilon"),
+        &eps_series,
+    )?;
+    line_chart(
+        &args.out.join("reconstruction_held_out.svg"),
+        &axes("Held-out camera error against training time", "held-out relative RMSE (%, per-update render)"),
+        &held_series,
+    )?;
+    Ok(())
+}
+
+/// Part 2: photon mapping over photon counts and radii, and the path tracer, against the reference.
+fn renderer(args: &Args, summary: &mut String) -> Result<()> {
+    let mut scene = rig::paper_scene(dualphoton::volume::plume::plume(args.res, args.seed), args.res);
+    scene.cameras.truncate(rig::HELD_OUT_CAMERA);
+    eprintln!("renderer: reference at {} spp ({})", args.ref_spp, args.reference_dir.display());
+    let reference = reference(&scene, args.seed, args.ref_spp, &args.reference_dir)?;
+    let noise = reference_noise(&reference.radiance, &reference.std_err, 4);
+    let voxel = scene.density.voxel_size().max();
+    let error =
+        |images: &[dualphoton::render::Image]| block_rel_rmse(images, &reference.radiance, Some(&reference.std_err), 4);
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+
+    let mut csv = String::from("method,photons,radius_voxels,spp,seconds,block_rel_rmse\n");
+    let mut series = vec![];
+    let _ = writeln!(
+        summary,
+        "\n## Renderer error against render time\n\n\
+         Block (4x4) relative RMSE of the 4 training cameras against a {} spp path-traced reference (its own noise, \
+         {:.2} %, removed). Photon mapping uses {} spp at the camera; time is the median of {} renders.\n\n\
+         | method | photons | radius (voxels) | spp | time (s) | block rel. RMSE |\n|---|---|---|---|---|---|",
+        args.ref_spp,
+        100.0 * noise,
+        scene.render.spp,
+        args.repeats
+    );
+    for &radius in &args.radii {
+        let mut points = vec![];
+        for &photons in &args.photons {
+            let mut s = scene.clone();
+            s.render.photons = photons;
+            s.render.kernel_radius = Some(radius * voxel);
+            let mut times = vec![];
+            let mut last = None;
+            for _ in 0..args.repeats.max(1) {
+                let t = Instant::now();
+                last = Some(render_photon(&s).images);
+                times.push(t.elapsed().as_secs_f64());
+            }
+            let (t, e) = (median(times), error(&last.unwrap_or_default()));
+            eprintln!("  photon mapping: {photons} photons, r = {radius} vox: {t:.3} s, {:.2} %", 100.0 * e);
+            let _ = writeln!(csv, "photon,{photons},{radius},{},{t:.4},{e:.5}", scene.render.spp);
+            let _ = writeln!(
+                summary,
+                "| photon mapping | {photons} | {radius} | {} | {t:.3} | {:.2} % |",
+                scene.render.spp,
+                100.0 * e
+            );
+            points.push((t, 100.0 * e));
+        }
+        series.push(Series { name: format!("photon mapping, r = {radius} vox"), points, markers: true });
+    }
+    let mut points = vec![];
+    for &spp in &args.path_spp {
+        let opts = PathOptions { spp, seed: 99, max_order: None, min_order: 1 };
+        let t = Instant::now();
+        let r = render_path(&scene, &opts);
+        let t = t.elapsed().as_secs_f64();
+        let e = error(&r.radiance);
+        eprintln!("  path tracing: {spp} spp: {t:.3} s, {:.2} %", 100.0 * e);
+        let _ = writeln!(csv, "path,,,{spp},{t:.4},{e:.5}");
+        let _ = writeln!(summary, "| path tracing | | | {spp} | {t:.3} | {:.2} % |", 100.0 * e);
+        points.push((t, 100.0 * e));
+    }
+    series.push(Series { name: "path tracing (unbiased)".into(), points, markers: true });
+    std::fs::write(args.out.join("renderer.csv"), csv)?;
+    line_chart(
+        &args.out.join("renderer_error_vs_time.svg"),
+        &Axes {
+            title: "Renderer error against render time",
+            x: "render time (s, 2 cores)",
+            y: "block relative RMSE vs reference (%)",
+            log_x: true,
+            log_y: true,
+        },
+        &series,
+    )
+}

@@ -1,0 +1,71 @@
+//! The study binaries of issue 5 end to end at a tiny size (`--smoke`):
+//! they run, write every promised file, and their numbers make sense.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn run(bin: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dualphoton-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new(bin).args(["--smoke", "--out", dir.to_str().unwrap()]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    dir
+}
+
+/// Rows of a CSV file as (header, rows of fields).
+fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().map(|l| l.split(',').map(str::to_string).collect::<Vec<_>>());
+    (lines.next().unwrap(), lines.collect())
+}
+
+#[test]
+fn grad_variance_smoke_run_measures_every_estimator() {
+    let dir = run(env!("CARGO_BIN_EXE_grad_variance"), "grad-variance");
+    for f in ["variance.csv", "summary.md", "manifest.json", "variance_vs_time_latent.svg", "theory_check.svg"] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let (head, rows) = csv(&dir.join("variance.csv"));
+    let col = |name: &str| head.iter().position(|h| h == name).unwrap();
+    for name in ["rev-full", "rev-sub", "fwd-full", "fwd-rand gaussian K=1", "fwd-rand orthonormal K=16", "fwd-guided"]
+    {
+        assert!(rows.iter().any(|r| r[col("method")].starts_with(name)), "{name} missing");
+    }
+    for r in &rows {
+        for c in ["rel_variance", "bias", "cosine_mean", "seconds", "efficiency"] {
+            let v: f64 = r[col(c)].parse().unwrap();
+            assert!(v.is_finite(), "{c} of {} is {v}", r[col("method")]);
+        }
+        // fwd-full and rev-full differentiate the same frozen estimator exactly.
+        if r[col("method")] == "fwd-full" {
+            let own: f64 = r[col("estimator_noise")].parse().unwrap();
+            assert!(own < 1e-12, "fwd-full differs from rev-full: {own}");
+        }
+    }
+}
+
+#[test]
+fn error_vs_time_smoke_run_writes_everything() {
+    let dir = run(env!("CARGO_BIN_EXE_error_vs_time"), "error-vs-time");
+    for f in [
+        "reconstruction.csv",
+        "reconstruction_final.csv",
+        "renderer.csv",
+        "reconstruction_epsilon.svg",
+        "reconstruction_held_out.svg",
+        "renderer_error_vs_time.svg",
+        "summary.md",
+        "manifest.json",
+    ] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let (_, finals) = csv(&dir.join("reconstruction_final.csv"));
+    assert_eq!(finals.len(), 4, "one row per estimator");
+    let (_, log) = csv(&dir.join("reconstruction.csv"));
+    for estimator in ["fwd-full", "fwd-rand", "rev-sub", "rev-full"] {
+        assert!(log.iter().any(|r| r[0] == estimator), "{estimator}: no update logged");
+    }
+    assert!(log.iter().all(|r| r[3..].iter().all(|v| v.parse::<f64>().unwrap().is_finite())));
+    let (_, renders) = csv(&dir.join("renderer.csv"));
+    assert!(renders.iter().all(|r| r[5].parse::<f64>().unwrap().is_finite()));
+}
