@@ -17,7 +17,7 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let res: usize = args.get(1).map_or(64, |s| s.parse().expect("res"));
     let iterations: usize = args.get(2).map_or(500, |s| s.parse().expect("iterations"));
-    let problem = paper_problem(res, 0, 1_000_000);
+    let problem = paper_problem(res, 0, 1_000_000, 0);
     let targets = &problem.images[..rig::HELD_OUT_CAMERA];
     let n_train = targets.len();
     for seed in 0..3 {

@@ -117,7 +117,7 @@ fn run(mut args: Args) -> Result<()> {
 fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -> Result<()> {
     let target_photons = if args.smoke { 20_000 } else { 1_000_000 };
     eprintln!("rendering the targets ...");
-    let PaperProblem { truth, scene, images } = paper_problem(args.res, args.seed, target_photons);
+    let PaperProblem { truth, scene, images } = paper_problem(args.res, args.seed, target_photons, 0);
     let (targets, held_out) = images.split_at(rig::HELD_OUT_CAMERA);
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
 

@@ -288,7 +288,7 @@ fn run(mut args: Args) -> Result<()> {
     // The problem of the main job: the plume seen by the paper rig.
     eprintln!("rendering the targets ...");
     let target_photons = if args.smoke { 20_000 } else { 1_000_000 };
-    let PaperProblem { truth, mut scene, images } = paper_problem(args.res, args.seed, target_photons);
+    let PaperProblem { truth, mut scene, images } = paper_problem(args.res, args.seed, target_photons, 0);
     if args.smoke {
         scene.render.photons = 20_000;
     }

@@ -80,21 +80,25 @@ pub struct ReconstructSettings {
 }
 
 /// The main job's problem: the built-in plume (ground truth), the paper
-/// rig around it, and the images of all its cameras rendered with
-/// `photons` and 8 samples per pixel (more than a training update uses).
+/// rig around it (plus `extra_views` training cameras,
+/// [`rig::extra_cameras`], placed before the held-out one), and the images
+/// of all its cameras rendered with `photons` and 8 samples per pixel (more
+/// than a training update uses).
 pub struct PaperProblem {
     /// Ground-truth density.
     pub truth: Grid<f64>,
     /// The rig with the ground truth; its render settings are the defaults.
     pub scene: Scene,
-    /// Images of every camera: `..rig::HELD_OUT_CAMERA` train, the rest are held out.
+    /// Images of every camera: `..rig::HELD_OUT_CAMERA + extra_views` train, the rest are held out.
     pub images: Vec<Image>,
 }
 
 /// [`PaperProblem`] at `res`^3 from `seed`.
-pub fn paper_problem(res: usize, seed: u64, photons: u64) -> PaperProblem {
+pub fn paper_problem(res: usize, seed: u64, photons: u64, extra_views: usize) -> PaperProblem {
     let truth = plume(res, seed);
-    let scene = rig::paper_scene(truth.clone(), res);
+    let mut scene = rig::paper_scene(truth.clone(), res);
+    let at = rig::HELD_OUT_CAMERA;
+    scene.cameras.splice(at..at, rig::extra_cameras(extra_views, res));
     let mut target = scene.clone();
     target.render.photons = photons;
     target.render.spp = 8;

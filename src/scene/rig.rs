@@ -46,6 +46,19 @@ pub fn paper_cameras(res: usize) -> Vec<Camera> {
         .collect()
 }
 
+/// `n` more cameras like the paper's, spread evenly over the far side of
+/// the circle (azimuths 90..270 degrees, looking towards the lights): extra
+/// training views for studying how much the paper's four constrain the density.
+pub fn extra_cameras(n: usize, res: usize) -> Vec<Camera> {
+    let template = paper_cameras(res).remove(0);
+    (0..n)
+        .map(|i| Camera {
+            position: on_circle(CAMERA_RADIUS, 90.0 + 180.0 * (i as f64 + 0.5) / n as f64),
+            ..template.clone()
+        })
+        .collect()
+}
+
 /// The paper's three lights.
 pub fn paper_lights() -> Vec<Light> {
     LIGHT_AZIMUTHS_DEG
