@@ -78,6 +78,9 @@ impl Part {
     }
 }
 
+/// (dL/dz, dL/dw), each where a method gives it.
+type ByPart = (Option<Vec<f64>>, Option<Vec<f64>>);
+
 /// One way of estimating the gradient.
 #[derive(Clone, Copy)]
 enum Method {
@@ -135,7 +138,7 @@ impl Method {
         model: &Model,
         frozen: &Frozen,
         rng: &mut Rng,
-    ) -> Result<(Option<Vec<f64>>, Option<Vec<f64>>)> {
+    ) -> Result<ByPart> {
         Ok(match self {
             Method::Reverse(sizes) => {
                 let subset = match sizes {
