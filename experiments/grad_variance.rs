@@ -60,6 +60,9 @@ struct Args {
     /// A tiny run (16^3, 3 seeds) to check that everything works.
     #[arg(long)]
     smoke: bool,
+    /// Only redraw the plots from the variance.csv an earlier run left in --out.
+    #[arg(long)]
+    replot: bool,
 }
 
 /// Which parameters a gradient is taken with respect to.
@@ -132,13 +135,7 @@ impl Method {
     }
 
     /// (dL/dz, dL/dw) where this method gives them.
-    fn estimate(
-        self,
-        level: &Level,
-        model: &Model,
-        frozen: &Frozen,
-        rng: &mut Rng,
-    ) -> Result<ByPart> {
+    fn estimate(self, level: &Level, model: &Model, frozen: &Frozen, rng: &mut Rng) -> Result<ByPart> {
         Ok(match self {
             Method::Reverse(sizes) => {
                 let subset = match sizes {
@@ -273,6 +270,9 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(mut args: Args) -> Result<()> {
+    if args.replot {
+        return plots(&args, &read_rows(&args.out.join("variance.csv"))?);
+    }
     if args.smoke {
         args.res = 16;
         args.seeds = 3;
@@ -521,29 +521,81 @@ fn write_outputs(args: &Args, rows: &[Row], scene: &Scene, wall_s: f64) -> Resul
     Ok(())
 }
 
-/// Relative variance against cost, and the theory check.
-fn plots(args: &Args, rows: &[Row]) -> Result<()> {
-    for part in [Part::Latent, Part::Weights] {
-        let series: Vec<Series> = rows
-            .iter()
-            .filter(|r| r.part == part)
-            .map(|r| Series {
-                name: format!("{} ({})", r.method, r.point),
-                points: vec![(r.seconds + r.primal_seconds, r.rel_variance)],
-                markers: true,
-            })
-            .collect();
-        line_chart(
-            &args.out.join(format!("variance_vs_time_{}.svg", part.name())),
-            &Axes {
-                title: &format!("Gradient w.r.t. the {}: variance against cost", part.name()),
-                x: "seconds per estimate (incl. the primal render)",
-                y: "total variance / |g_ref|^2",
-                log_x: true,
-                log_y: true,
+/// The rows of a `variance.csv` this binary wrote.
+fn read_rows(path: &std::path::Path) -> Result<Vec<Row>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error(format!("cannot read {}: {e}", path.display())))?;
+    let bad = |line: usize| Error(format!("{}: line {} is not a row of this study", path.display(), line + 1));
+    let mut rows = vec![];
+    for (i, line) in text.lines().enumerate().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 16 {
+            return Err(bad(i));
+        }
+        let num = |k: usize| f[k].parse::<f64>().map_err(|_| bad(i));
+        rows.push(Row {
+            point: match f[0] {
+                "initial" => "initial",
+                "midway" => "midway",
+                _ => return Err(bad(i)),
             },
-            &group_by_method(series),
-        )?;
+            part: if f[1] == "latent" { Part::Latent } else { Part::Weights },
+            method: f[2].to_string(),
+            n: f[3].parse().map_err(|_| bad(i))?,
+            rel_variance: num(4)?,
+            bias: num(5)?,
+            bias_floor: num(6)?,
+            rel_mse: num(7)?,
+            cosine_mean: num(8)?,
+            cosine_of_mean: num(9)?,
+            estimator_noise: num(10)?,
+            theory: f[11].parse().ok(),
+            seconds: num(12)?,
+            primal_seconds: num(13)?,
+            peak_mib: num(14)?,
+            efficiency: num(15)?,
+        });
+    }
+    Ok(rows)
+}
+
+/// A method's family: the sizes of one estimator joined into one line.
+fn family(method: &str) -> String {
+    if method.starts_with("rev-sub") {
+        "rev-sub (subsets 1/4 to 16 x the paper's)".into()
+    } else if let Some((head, _)) = method.split_once(" K=") {
+        format!("{head} (over K)")
+    } else {
+        method.into()
+    }
+}
+
+/// Relative variance against cost per point and part (each estimator
+/// family one line over its sizes), and the theory check.
+fn plots(args: &Args, rows: &[Row]) -> Result<()> {
+    for point in ["initial", "midway"] {
+        for part in [Part::Latent, Part::Weights] {
+            let mut series: Vec<Series> = vec![];
+            for r in rows.iter().filter(|r| r.point == point && r.part == part) {
+                let name = family(&r.method);
+                let p = (r.seconds + r.primal_seconds, r.rel_variance);
+                match series.iter_mut().find(|s| s.name == name) {
+                    Some(s) => s.points.push(p),
+                    None => series.push(Series { name, points: vec![p], markers: true }),
+                }
+            }
+            series.iter_mut().for_each(|s| s.points.sort_by(|a, b| a.0.total_cmp(&b.0)));
+            line_chart(
+                &args.out.join(format!("variance_vs_time_{}_{point}.svg", part.name())),
+                &Axes {
+                    title: &format!("Gradient w.r.t. the {} ({point}): variance against cost", part.name()),
+                    x: "seconds per estimate (incl. the primal render)",
+                    y: "total variance / |g_ref|^2",
+                    log_x: true,
+                    log_y: true,
+                },
+                &series,
+            )?;
+        }
     }
     // Theory check: measured own noise against (n+1)/K or n/K - 1.
     let mut series = vec![];
@@ -578,17 +630,4 @@ fn plots(args: &Args, rows: &[Row]) -> Result<()> {
         },
         &series,
     )
-}
-
-/// One series per method (its initial and midway points joined).
-fn group_by_method(series: Vec<Series>) -> Vec<Series> {
-    let mut out: Vec<Series> = vec![];
-    for s in series {
-        let method = s.name.split(" (").next().unwrap_or("").to_string();
-        match out.iter_mut().find(|o| o.name == method) {
-            Some(o) => o.points.extend(s.points),
-            None => out.push(Series { name: method, points: s.points, markers: true }),
-        }
-    }
-    out
 }

@@ -22,7 +22,7 @@ fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
 #[test]
 fn grad_variance_smoke_run_measures_every_estimator() {
     let dir = run(env!("CARGO_BIN_EXE_grad_variance"), "grad-variance");
-    for f in ["variance.csv", "summary.md", "manifest.json", "variance_vs_time_latent.svg", "theory_check.svg"] {
+    for f in ["variance.csv", "summary.md", "manifest.json", "variance_vs_time_latent_midway.svg", "theory_check.svg"] {
         assert!(dir.join(f).exists(), "{f} missing");
     }
     let (head, rows) = csv(&dir.join("variance.csv"));
