@@ -59,6 +59,9 @@ struct Args {
     /// four views constrain the density).
     #[arg(long, default_value_t = 0)]
     extra_views: usize,
+    /// Weight of a sparsity prior (times the mean hull density) added to the image loss; 0 = the paper's loss.
+    #[arg(long, default_value_t = 0.0)]
+    sparsity: f64,
     /// Output directory.
     #[arg(long, default_value = "results/table1")]
     out: PathBuf,
@@ -114,6 +117,7 @@ fn run(mut args: Args) -> Result<()> {
             weight_mode,
             lr_latent: args.lr_latent,
             lr_weights: args.lr_weights,
+            sparsity: args.sparsity,
             photons: args.photons,
             spp: args.spp,
             seed: args.seed,
@@ -188,7 +192,7 @@ fn run(mut args: Args) -> Result<()> {
             "seed": args.seed, "res": args.res, "iterations": args.iterations, "estimator": estimator.name(),
             "lanes": args.lanes, "weight_directions": args.weight_directions, "weight_mode": args.weight_mode,
             "lr_latent": args.lr_latent, "lr_weights": args.lr_weights, "photons": args.photons, "spp": args.spp, "coarse_fraction": args.coarse_fraction,
-            "extra_views": args.extra_views, "target_photons": scene.render.photons, "target_spp": scene.render.spp, "hull_voxels": hull_voxels,
+            "extra_views": args.extra_views, "sparsity": args.sparsity, "target_photons": scene.render.photons, "target_spp": scene.render.spp, "hull_voxels": hull_voxels,
             "decoder": r.model.decoder.describe(), "decoder_parameters": r.model.decoder.param_count(),
             "git": git_revision(), "wall_s": started.elapsed().as_secs_f64(), "threads": rayon::current_num_threads(),
         }),
