@@ -253,6 +253,28 @@ impl<'a> Tracer<'a> {
     fn free_flight(&self, ray: &Ray, rng: &mut Rng) -> Option<f64> {
         let (t0, t1) = intersect_box(ray, &self.lo, &self.hi)?;
         let mut hit = None;
+        self.tentative_collisions(ray, t0, t1, rng, |t, mu, rng| {
+            if rng.uniform() * mu < self.sigma_t(&ray.at(t)) {
+                hit = Some(t);
+                return false;
+            }
+            true
+        });
+        hit
+    }
+
+    /// Calls `visit(t, mu, rng)` at each tentative collision along `ray` in
+    /// `[t0, t1]`, drawn against the block majorants `mu`, until it returns
+    /// false: the loop delta and ratio tracking share; only what they do at
+    /// a tentative collision differs.
+    fn tentative_collisions(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        rng: &mut Rng,
+        mut visit: impl FnMut(f64, f64, &mut Rng) -> bool,
+    ) {
         let mut tau = exp1(rng); // majorant optical depth left to the next tentative collision
         self.majorant.walk(ray, t0, t1, |ta, tb, bound| {
             let mu = bound * self.scale;
@@ -267,14 +289,12 @@ impl<'a> Tracer<'a> {
                     return true;
                 }
                 t += tau / mu;
-                if rng.uniform() * mu < self.sigma_t(&ray.at(t)) {
-                    hit = Some(t);
+                if !visit(t, mu, rng) {
                     return false;
                 }
                 tau = exp1(rng);
             }
         });
-        hit
     }
 
     /// Radiance scattered at `x` into `-dir` from every light, per unit
@@ -302,32 +322,18 @@ impl<'a> Tracer<'a> {
     fn transmittance(&self, ray: &Ray, r: f64, rng: &mut Rng) -> f64 {
         let Some((t0, t1)) = intersect_box(ray, &self.lo, &self.hi) else { return 1.0 };
         let mut tr = 1.0;
-        let mut tau = exp1(rng);
-        self.majorant.walk(ray, t0, t1.min(r), |ta, tb, bound| {
-            let mu = bound * self.scale;
-            if mu <= 0.0 {
-                return true;
-            }
-            let mut t = ta;
-            loop {
-                let room = (tb - t) * mu;
-                if tau >= room {
-                    tau -= room;
-                    return true;
+        self.tentative_collisions(ray, t0, t1.min(r), rng, |t, mu, rng| {
+            // The bound holds exactly in real numbers; rounding of the
+            // trilinear weights can put sigma_t an ulp above mu, hence the max.
+            tr *= (1.0 - self.sigma_t(&ray.at(t)) / mu).max(0.0);
+            if tr < RR_THRESHOLD {
+                if tr == 0.0 || rng.uniform() < RR_KILL {
+                    tr = 0.0;
+                    return false;
                 }
-                t += tau / mu;
-                // The bound holds exactly in real numbers; rounding of the
-                // trilinear weights can put sigma_t an ulp above mu, hence the max.
-                tr *= (1.0 - self.sigma_t(&ray.at(t)) / mu).max(0.0);
-                if tr < RR_THRESHOLD {
-                    if tr == 0.0 || rng.uniform() < RR_KILL {
-                        tr = 0.0;
-                        return false;
-                    }
-                    tr /= 1.0 - RR_KILL;
-                }
-                tau = exp1(rng);
+                tr /= 1.0 - RR_KILL;
             }
+            true
         });
         tr
     }
