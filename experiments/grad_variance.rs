@@ -350,7 +350,6 @@ fn study_point(
     }
 
     let mut samples: Vec<Samples> = methods.iter().map(|_| Samples::default()).collect();
-    let mut exact = Samples::default();
     let mut primal = vec![];
     for s in 0..args.seeds {
         let t = Instant::now();
@@ -365,10 +364,6 @@ fn study_point(
             let (dz, dw) = m.estimate(&level, model, &frozen, &mut rng)?;
             samples[i].seconds.push(t.elapsed().as_secs_f64());
             samples[i].peak_mib = samples[i].peak_mib.max(peak_memory_mib());
-            if matches!(m, Method::Reverse(None)) {
-                exact.latent.push(dz.clone().unwrap_or_default());
-                exact.weights.push(dw.clone().unwrap_or_default());
-            }
             samples[i].latent.extend(dz);
             samples[i].weights.extend(dw);
         }
@@ -377,6 +372,12 @@ fn study_point(
     eprintln!();
 
     let primal_s = median(&primal);
+    // `rev-full` on each seed's frozen paths: the exact gradient the others estimate.
+    let exact = methods
+        .iter()
+        .position(|m| matches!(m, Method::Reverse(None)))
+        .map(|i| &samples[i])
+        .ok_or_else(|| Error::new("the methods must include rev-full"))?;
     let mut rows = vec![];
     for (m, smp) in methods.iter().zip(&samples) {
         for &part in m.parts() {
