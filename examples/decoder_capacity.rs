@@ -6,10 +6,11 @@
 //! update's render settings: the floor below which the images carry no
 //! more information (render noise), to compare with the trained model's.
 //! `cargo run --release --example decoder_capacity -- [res] [iterations]`
+use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1};
 use dualphoton::grad::loss::mse;
-use dualphoton::optim::adam::Adam;
-use dualphoton::optim::reconstruct::{hull_stats, initial_model, paper_problem, pearson};
-use dualphoton::optim::train::rel_l1;
+use dualphoton::recon::adam::Adam;
+use dualphoton::recon::problem::paper_problem;
+use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
 
@@ -23,7 +24,7 @@ fn main() {
     for seed in 0..3 {
         let mut scene = problem.scene.clone();
         scene.cameras.truncate(n_train);
-        let defaults = dualphoton::optim::train::TrainSettings::default();
+        let defaults = dualphoton::recon::train::TrainSettings::default();
         scene.render.photons = defaults.photons;
         scene.render.spp = defaults.spp;
         scene.render.seed = 100 + seed;

@@ -1,10 +1,11 @@
 //! Diagnostic: photon mapping against the path tracer order by order on the
 //! paper rig at 64^3. `cargo run --release --example orders -- [photons] [radius_voxels] [path_spp] [spp]`
-use dualphoton::render::metrics::{block_rel_rmse, rel_mean_diff};
+use dualphoton::data::plume::plume;
+use dualphoton::eval::metrics::{block_rel_rmse, rel_mean_diff};
+use dualphoton::image::Image;
 use dualphoton::render::path::{render_path, PathOptions};
-use dualphoton::render::{render_photon, Image};
+use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
-use dualphoton::volume::plume::plume;
 fn sub(a: &[Image], b: &[Image]) -> Vec<Image> {
     a.iter()
         .zip(b)

@@ -1,10 +1,10 @@
 //! Diagnostic: share of a camera's photon estimate carried by the heaviest photons
 //! (the heavy tail that camera-guided scattering cuts), on the paper rig at 64^3.
 //! `cargo run --release --example tails`
+use dualphoton::data::plume::plume;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::scene::rig;
 use dualphoton::volume::phase::hg_eval;
-use dualphoton::volume::plume::plume;
 fn main() {
     let mut scene = rig::paper_scene(plume(64, 0), 64);
     scene.cameras.truncate(4);

@@ -7,6 +7,7 @@
 //! before each measurement through /proc/self/clear_refs.
 
 use clap::Parser;
+use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
 use dualphoton::grad::forward::{coordinate_gradient, random_gradient, Directions};
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
@@ -14,7 +15,6 @@ use dualphoton::io::manifest::{git_revision, peak_memory_mib, reset_peak_memory,
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
 use dualphoton::scene::{rig, Scene};
-use dualphoton::volume::plume::plume;
 use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;

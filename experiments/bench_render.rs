@@ -13,19 +13,16 @@
 //!
 //! `--smoke` runs a tiny version (for tests of this binary).
 
-#[path = "common/reference.rs"]
-mod reference;
-
 use clap::Parser;
+use dualphoton::data::plume::plume;
 use dualphoton::error::Result;
+use dualphoton::eval::metrics::{block_rel_rmse, reference_noise, rel_mean_diff};
+use dualphoton::eval::reference::{reference, REF_SEED};
 use dualphoton::io::manifest::{git_revision, write_json};
 use dualphoton::io::plot::{line_chart, Axes, Series};
-use dualphoton::render::metrics::{block_rel_rmse, reference_noise, rel_mean_diff};
 use dualphoton::render::photon::Timings;
 use dualphoton::render::{render_photon, PhotonRender};
 use dualphoton::scene::{rig, Scene};
-use dualphoton::volume::plume::plume;
-use reference::{reference, REF_SEED};
 use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;

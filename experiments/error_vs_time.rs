@@ -11,21 +11,20 @@
 //! Writes `results/error_vs_time/{reconstruction.csv, reconstruction_final.csv,
 //! renderer.csv, *.svg, summary.md, manifest.json}`.
 
-#[path = "common/reference.rs"]
-mod reference;
-
 use clap::Parser;
 use dualphoton::error::{Error, Result};
+use dualphoton::eval::metrics::{block_rel_rmse, reference_noise};
+use dualphoton::eval::metrics::{pearson, rel_l1, rel_rmse};
+use dualphoton::eval::reference::reference;
 use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, write_json};
 use dualphoton::io::plot::{line_chart, Axes, Series};
-use dualphoton::optim::reconstruct::{initial_model, paper_problem, pearson, PaperProblem};
-use dualphoton::optim::train::{rel_l1, rel_rmse, train, LogRow, Problem, TrainSettings};
-use dualphoton::render::metrics::{block_rel_rmse, reference_noise};
+use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
+use dualphoton::recon::reconstruct::initial_model;
+use dualphoton::recon::train::{train, LogRow, TrainSettings};
 use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
-use reference::reference;
 use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -217,14 +216,14 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
 
 /// Part 2: photon mapping over photon counts and radii, and the path tracer, against the reference.
 fn renderer(args: &Args, summary: &mut String) -> Result<()> {
-    let mut scene = rig::paper_scene(dualphoton::volume::plume::plume(args.res, args.seed), args.res);
+    let mut scene = rig::paper_scene(dualphoton::data::plume::plume(args.res, args.seed), args.res);
     scene.cameras.truncate(rig::HELD_OUT_CAMERA);
     eprintln!("renderer: reference at {} spp ({})", args.ref_spp, args.reference_dir.display());
     let reference = reference(&scene, args.seed, args.ref_spp, &args.reference_dir)?;
     let noise = reference_noise(&reference.radiance, &reference.std_err, 4);
     let voxel = scene.density.voxel_size().max();
     let error =
-        |images: &[dualphoton::render::Image]| block_rel_rmse(images, &reference.radiance, Some(&reference.std_err), 4);
+        |images: &[dualphoton::image::Image]| block_rel_rmse(images, &reference.radiance, Some(&reference.std_err), 4);
     let median = |mut v: Vec<f64>| {
         v.sort_by(|a, b| a.total_cmp(b));
         v[v.len() / 2]

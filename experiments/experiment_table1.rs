@@ -4,12 +4,12 @@
 
 use clap::Parser;
 use dualphoton::error::{Error, Result};
+use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1, rel_rmse};
 use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, write_json};
-use dualphoton::optim::reconstruct::{
-    hull_stats, paper_problem, pearson, reconstruct, write_outputs, PaperProblem, ReconstructSettings,
-};
-use dualphoton::optim::train::{rel_l1, rel_rmse, TrainSettings, WeightDirections};
+use dualphoton::recon::problem::{paper_problem, PaperProblem};
+use dualphoton::recon::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
+use dualphoton::recon::train::{TrainSettings, WeightDirections};
 use dualphoton::scene::{file, rig};
 use serde_json::json;
 use std::fmt::Write as _;
@@ -130,7 +130,7 @@ fn run(mut args: Args) -> Result<()> {
     };
     let train_start = Instant::now();
     let total = args.iterations;
-    let mut progress = |row: &dualphoton::optim::train::LogRow| {
+    let mut progress = |row: &dualphoton::recon::train::LogRow| {
         let t = train_start.elapsed().as_secs_f64();
         let done = row.iteration + 1;
         eprint!(

@@ -13,12 +13,15 @@
 #![warn(missing_docs)]
 
 pub mod ad;
+pub mod data;
 pub mod error;
+pub mod eval;
 pub mod grad;
+pub mod image;
 pub mod io;
 pub mod math;
 pub mod model;
-pub mod optim;
+pub mod recon;
 pub mod render;
 pub mod rng;
 pub mod scene;

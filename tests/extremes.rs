@@ -57,7 +57,7 @@ fn values_and_derivatives_are_finite() {
         let targets: Vec<_> = frozen
             .images
             .iter()
-            .map(|i| dualphoton::render::Image { data: vec![0.01; i.data.len()], ..i.clone() })
+            .map(|i| dualphoton::image::Image { data: vec![0.01; i.data.len()], ..i.clone() })
             .collect();
         let rev = reverse_gradient(&frozen, &targets, Subset::full());
         assert!(rev.loss.is_finite() && rev.grad.iter().all(|g| g.is_finite()), "{name}: reverse gradient not finite");

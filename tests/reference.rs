@@ -15,9 +15,10 @@
 
 mod common;
 
+use dualphoton::image::Image;
 use dualphoton::math::Vec3;
 use dualphoton::render::path::{render_path, PathOptions};
-use dualphoton::render::{render_photon, Image};
+use dualphoton::render::render_photon;
 use dualphoton::scene::{Light, Scene};
 
 fn scene(g: f64, max_order: u32, seed: u64) -> Scene {

@@ -1,18 +1,19 @@
 //! The `dualphoton` command line: `render`, `grad`, `fit` and `scene` (see `--help`).
 
 use clap::{Parser, Subcommand, ValueEnum};
+use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
 use dualphoton::grad::forward::Directions;
 use dualphoton::grad::loss::mse;
 use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES};
+use dualphoton::image::Image;
 use dualphoton::io::{npy, png};
-use dualphoton::optim::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
-use dualphoton::optim::train::{LogRow, TrainSettings};
+use dualphoton::recon::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
+use dualphoton::recon::train::{LogRow, TrainSettings};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
-use dualphoton::render::{render_photon, Image};
+use dualphoton::render::render_photon;
 use dualphoton::scene::{file, rig, Scene};
-use dualphoton::volume::{plume, scalarflow};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

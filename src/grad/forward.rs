@@ -5,8 +5,8 @@
 
 use super::loss::mse;
 use crate::ad::dual::{lane, with_tangents};
+use crate::image::Image;
 use crate::render::frozen::Frozen;
-use crate::render::Image;
 use crate::rng::Rng;
 use crate::volume::Grid;
 use num_dual::DualSVec64;

@@ -2,7 +2,7 @@
 //! N the total number of pixels of all cameras.
 
 use crate::ad::Real;
-use crate::render::Image;
+use crate::image::Image;
 
 /// The mean squared error of `images` (one `Vec` per camera) against `targets`.
 pub fn mse<R: Real>(images: &[Vec<R>], targets: &[Image]) -> R {

@@ -61,8 +61,8 @@ impl Estimator {
     }
 }
 
+use crate::image::Image;
 use crate::render::frozen::Frozen;
-use crate::render::Image;
 use crate::rng::{Purpose, Rng};
 use forward::{coordinate_gradient, random_gradient, Directions};
 use reverse::{reverse_gradient, Subset};

@@ -15,9 +15,9 @@
 
 use super::loss::mse_residuals;
 use crate::ad::tape::{self, Var};
+use crate::image::Image;
 use crate::render::frozen::Frozen;
 use crate::render::march::Step;
-use crate::render::Image;
 use crate::rng::{Purpose, Rng};
 use crate::volume::phase::hg_eval;
 use crate::volume::Grid;

@@ -4,7 +4,7 @@
 
 use super::plot::{line_chart, Axes, Series};
 use crate::error::{Error, Result};
-use crate::render::Image;
+use crate::image::Image;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -56,7 +56,7 @@ pub fn image_strip(images: &[&Image], white: f64, out: &Path) -> Result<()> {
 /// Fig. 8: ground truth | estimate (shared white point, grey) | signed error
 /// (blue negative, red positive, full colour at `white / 4`), as one RGB PNG.
 pub fn held_out_panel(truth: &Image, estimate: &Image, out: &Path) -> Result<()> {
-    let white = super::png::auto_white(&truth.data);
+    let white = crate::image::auto_white(&truth.data);
     let (w, h, gap) = (truth.width, truth.height, 2);
     let mut canvas = image::RgbImage::from_pixel((3 * w + 2 * gap) as u32, h as u32, image::Rgb([255, 255, 255]));
     let gt = super::png::tone_map(&truth.data, white);

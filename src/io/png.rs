@@ -6,17 +6,8 @@
 //! images can share one exposure).
 
 use crate::error::{Error, Result};
+use crate::image::auto_white;
 use std::path::Path;
-
-/// The 99.5th percentile of the positive values, or 1 if there are none.
-pub fn auto_white(values: &[f64]) -> f64 {
-    let mut pos: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0 && v.is_finite()).collect();
-    if pos.is_empty() {
-        return 1.0;
-    }
-    pos.sort_by(|a, b| a.total_cmp(b));
-    pos[((pos.len() - 1) as f64 * 0.995).round() as usize]
-}
 
 /// 8-bit grey levels of `values` under the tone map with the given white point.
 pub fn tone_map(values: &[f64], white: f64) -> Vec<u8> {

@@ -2,10 +2,8 @@
 //! photon mapping, and an unbiased volumetric path tracer as the reference.
 //! Renderers compute images; they write no files.
 
-pub mod image;
 pub mod path;
 
-pub use image::Image;
 pub mod camera_rays;
 pub mod march;
 pub mod photon;
@@ -15,4 +13,3 @@ pub mod splat;
 pub use photon::{render_photon, PhotonRender};
 pub mod emission;
 pub mod frozen;
-pub mod metrics;

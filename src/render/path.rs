@@ -31,7 +31,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use super::Image;
+use crate::image::Image;
 use crate::math::{intersect_box, Ray, Vec3};
 use crate::rng::{Purpose, Rng};
 use crate::scene::{Camera, Scene};

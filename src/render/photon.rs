@@ -5,7 +5,7 @@
 
 use super::frozen::Frozen;
 pub use super::frozen::Timings;
-use super::Image;
+use crate::image::Image;
 use crate::scene::Scene;
 
 /// Images (one per camera, scene order) and what it took to make them.

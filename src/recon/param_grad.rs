@@ -5,11 +5,11 @@
 //! the `grad_variance` study compares them all.
 
 use super::level::Level;
-use super::train::Model;
 use crate::ad::dual::with_tangents;
 use crate::error::Result;
 use crate::grad::forward::{directional, random_directions, Directions};
 use crate::grad::reverse::{reverse_gradient, Subset};
+use crate::model::Model;
 use crate::render::frozen::Frozen;
 use crate::rng::Rng;
 use crate::volume::Grid;

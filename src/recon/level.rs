@@ -1,9 +1,9 @@
 //! Resolutions of the training loop: the problem's own, and half of it
 //! (grid and images pooled 2x) for the coarse updates.
 
-use super::train::Problem;
+use super::problem::Problem;
 use crate::ad::Real;
-use crate::render::Image;
+use crate::image::Image;
 use crate::scene::Scene;
 use crate::volume::Grid;
 

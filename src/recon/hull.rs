@@ -6,9 +6,9 @@
 //! image's 99.5th-percentile radiance, dilated by `dilate` pixels (so that
 //! noise and the pixel footprint do not carve away thin wisps).
 
-use super::Grid;
-use crate::render::Image;
+use crate::image::Image;
 use crate::scene::Camera;
+use crate::volume::Grid;
 
 /// Silhouette threshold as a fraction of the image's 99.5th-percentile radiance.
 pub const SILHOUETTE_THRESHOLD: f64 = 0.02;
@@ -17,7 +17,7 @@ pub const SILHOUETTE_DILATION: usize = 1;
 
 /// The silhouette of `image`: `true` where the medium is seen.
 pub fn silhouette(image: &Image, threshold: f64, dilate: usize) -> Vec<bool> {
-    let white = crate::io::png::auto_white(&image.data);
+    let white = crate::image::auto_white(&image.data);
     let (w, h) = (image.width, image.height);
     let seen: Vec<bool> = image.data.iter().map(|&v| v > threshold * white && v > 0.0).collect();
     let mut out = vec![false; w * h];

@@ -18,11 +18,11 @@
 //! the built-in plume and of the paper's ground truth; the frame's own
 //! units are arbitrary), and values below [`CUTOFF`] are set to 0.
 
-use super::grid::Grid;
 use super::plume::{CUTOFF, PLUME_MAX};
 use crate::error::{Error, Result};
 use crate::io::npy::{self, Array};
 use crate::math::Vec3;
+use crate::volume::Grid;
 use rayon::prelude::*;
 use std::io::Read;
 use std::path::Path;
@@ -35,7 +35,7 @@ use std::path::Path;
 /// but zeros, `res = 0`.
 ///
 /// ```no_run
-/// use dualphoton::volume::scalarflow::load_scalarflow;
+/// use dualphoton::data::scalarflow::load_scalarflow;
 /// let g = load_scalarflow(std::path::Path::new("density_000080.npz"), 64)?;
 /// assert_eq!(g.shape, [64, 64, 64]);
 /// # Ok::<(), dualphoton::Error>(())

@@ -1,7 +1,8 @@
-//! Image error metrics (issue 2): relative RMSE over block means, with the
-//! reference's own Monte Carlo noise subtracted.
+//! Error metrics: of images (relative RMSE, also over block means with a
+//! reference's own Monte Carlo noise subtracted) and of densities over the
+//! hull voxels (mean and max, relative L1 error, Pearson r).
 
-use super::Image;
+use crate::image::Image;
 
 /// Sums over all camera pairs: (sum of squared block differences, sum of
 /// reference block noise variances, sum of squared reference blocks, blocks).
@@ -51,5 +52,65 @@ pub fn rel_mean_diff(ours: &[Image], reference: &[Image]) -> f64 {
         0.0
     } else {
         (sum(ours) - r) / r
+    }
+}
+
+/// Relative RMSE of `ours` against `reference`.
+pub fn rel_rmse(ours: &[f64], reference: &[f64]) -> f64 {
+    let num: f64 = ours.iter().zip(reference).map(|(a, b)| (a - b).powi(2)).sum();
+    let den: f64 = reference.iter().map(|b| b * b).sum();
+    if den == 0.0 {
+        0.0
+    } else {
+        (num / den).sqrt()
+    }
+}
+
+/// Relative L1 error `|a - b|_1 / |b|_1` over the masked voxels.
+pub fn rel_l1(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..a.len() {
+        if mask[i] {
+            num += (a[i] - b[i]).abs();
+            den += b[i].abs();
+        }
+    }
+    if den == 0.0 {
+        0.0
+    } else {
+        num / den
+    }
+}
+
+/// Density statistics over the hull voxels.
+#[derive(Clone, Copy, Debug)]
+pub struct HullStats {
+    /// Mean density.
+    pub mean: f64,
+    /// Largest density.
+    pub max: f64,
+}
+
+/// Mean and max of `d` over the `mask` voxels.
+pub fn hull_stats(d: &[f64], mask: &[bool]) -> HullStats {
+    let v: Vec<f64> = d.iter().zip(mask).filter(|(_, &m)| m).map(|(x, _)| *x).collect();
+    HullStats { mean: v.iter().sum::<f64>() / v.len().max(1) as f64, max: v.iter().fold(0.0, |a: f64, &b| a.max(b)) }
+}
+
+/// Pearson correlation of `a` and `b` over the `mask` voxels.
+pub fn pearson(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
+    let idx: Vec<usize> = (0..a.len()).filter(|&i| mask[i]).collect();
+    let n = idx.len().max(1) as f64;
+    let (ma, mb) = (idx.iter().map(|&i| a[i]).sum::<f64>() / n, idx.iter().map(|&i| b[i]).sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for &i in &idx {
+        sab += (a[i] - ma) * (b[i] - mb);
+        saa += (a[i] - ma).powi(2);
+        sbb += (b[i] - mb).powi(2);
+    }
+    if saa == 0.0 || sbb == 0.0 {
+        0.0
+    } else {
+        sab / (saa * sbb).sqrt()
     }
 }

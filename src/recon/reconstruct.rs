@@ -2,14 +2,16 @@
 //! and decoder initialised inside it, training, and everything a reader
 //! needs to check the result, written into one directory.
 
-use super::train::{train, LogRow, Model, Problem, TrainSettings};
+use super::problem::Problem;
+use super::train::{train, LogRow, TrainSettings};
 use crate::error::{Error, Result};
+use crate::image::Image;
 use crate::io::{figures, npy};
 use crate::model::Decoder;
-use crate::render::{render_photon, Image};
-use crate::scene::{rig, Scene};
-use crate::volume::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
-use crate::volume::plume::plume;
+use crate::model::Model;
+use crate::recon::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
+use crate::render::render_photon;
+use crate::scene::Scene;
 use crate::volume::Grid;
 use std::io::Write as _;
 use std::path::Path;
@@ -33,39 +35,6 @@ pub struct Reconstruction {
     pub snapshots: Vec<(usize, Image)>,
 }
 
-/// Density statistics over the hull voxels.
-#[derive(Clone, Copy, Debug)]
-pub struct HullStats {
-    /// Mean density.
-    pub mean: f64,
-    /// Largest density.
-    pub max: f64,
-}
-
-/// Mean and max of `d` over the `mask` voxels.
-pub fn hull_stats(d: &[f64], mask: &[bool]) -> HullStats {
-    let v: Vec<f64> = d.iter().zip(mask).filter(|(_, &m)| m).map(|(x, _)| *x).collect();
-    HullStats { mean: v.iter().sum::<f64>() / v.len().max(1) as f64, max: v.iter().fold(0.0, |a: f64, &b| a.max(b)) }
-}
-
-/// Pearson correlation of `a` and `b` over the `mask` voxels.
-pub fn pearson(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
-    let idx: Vec<usize> = (0..a.len()).filter(|&i| mask[i]).collect();
-    let n = idx.len().max(1) as f64;
-    let (ma, mb) = (idx.iter().map(|&i| a[i]).sum::<f64>() / n, idx.iter().map(|&i| b[i]).sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for &i in &idx {
-        sab += (a[i] - ma) * (b[i] - mb);
-        saa += (a[i] - ma).powi(2);
-        sbb += (b[i] - mb).powi(2);
-    }
-    if saa == 0.0 || sbb == 0.0 {
-        0.0
-    } else {
-        sab / (saa * sbb).sqrt()
-    }
-}
-
 /// Settings of a reconstruction beyond training.
 #[derive(Clone, Debug)]
 pub struct ReconstructSettings {
@@ -77,34 +46,6 @@ pub struct ReconstructSettings {
     pub final_spp: u32,
     /// Seed of the model's initial values.
     pub init_seed: u64,
-}
-
-/// The main job's problem: the built-in plume (ground truth), the paper
-/// rig around it (plus `extra_views` training cameras,
-/// [`rig::extra_cameras`], placed before the held-out one), and the images
-/// of all its cameras rendered with `photons` and 8 samples per pixel (more
-/// than a training update uses).
-pub struct PaperProblem {
-    /// Ground-truth density.
-    pub truth: Grid<f64>,
-    /// The rig with the ground truth; its render settings are the defaults.
-    pub scene: Scene,
-    /// Images of every camera: `..rig::HELD_OUT_CAMERA + extra_views` train, the rest are held out.
-    pub images: Vec<Image>,
-}
-
-/// [`PaperProblem`] at `res`^3 from `seed`.
-pub fn paper_problem(res: usize, seed: u64, photons: u64, extra_views: usize) -> PaperProblem {
-    let truth = plume(res, seed);
-    let mut scene = rig::paper_scene(truth.clone(), res);
-    let at = rig::HELD_OUT_CAMERA;
-    scene.cameras.splice(at..at, rig::extra_cameras(extra_views, res));
-    let mut target = scene.clone();
-    target.render.photons = photons;
-    target.render.spp = 8;
-    target.render.seed = seed.wrapping_add(4242);
-    let images = render_photon(&target).images;
-    PaperProblem { truth, scene, images }
 }
 
 /// The model before training: the visual hull of the training cameras
@@ -206,7 +147,7 @@ pub fn write_outputs(
     }
     figures::loss_curves(&out.join("log.csv"), &out.join("fig5_loss.svg"))?;
     if targets.len() > 2 {
-        let white = crate::io::png::auto_white(&targets[2].data);
+        let white = crate::image::auto_white(&targets[2].data);
         let mut strip: Vec<&Image> = r.snapshots.iter().map(|(_, i)| i).collect();
         strip.push(&targets[2]);
         figures::image_strip(&strip, white, &out.join("fig6_camera2.png"))?;

@@ -34,8 +34,8 @@
 mod fluid;
 mod noise;
 
-use super::grid::Grid;
 use crate::math::Vec3;
+use crate::volume::Grid;
 use fluid::{Field, Fluid, Settings};
 use noise::Noise;
 use rayon::prelude::*;
@@ -106,7 +106,7 @@ pub fn plume_stats(grid: &Grid<f64>) -> PlumeStats {
 /// a second (the simulation) plus 0.1 s per million voxels, on one core.
 ///
 /// ```
-/// let g = dualphoton::volume::plume::plume(16, 0);
+/// let g = dualphoton::data::plume::plume(16, 0);
 /// assert_eq!(g.shape, [16, 16, 16]);
 /// assert!((g.max_value() - 1.36).abs() < 1e-9);
 /// ```

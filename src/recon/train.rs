@@ -16,17 +16,18 @@
 
 use super::level::Level;
 use super::param_grad;
+use super::problem::Problem;
 use crate::error::Result;
+use crate::eval::metrics::{rel_l1, rel_rmse};
 use crate::grad::forward::Directions;
 use crate::grad::loss::mse;
 use crate::grad::reverse::Subset;
 use crate::grad::Estimator;
-use crate::model::Decoder;
-use crate::optim::adam::Adam;
+use crate::image::Image;
+use crate::model::Model;
+use crate::recon::adam::Adam;
 use crate::render::frozen::Frozen;
-use crate::render::Image;
 use crate::rng::{Purpose, Rng};
-use crate::scene::Scene;
 use crate::volume::Grid;
 use std::time::Instant;
 
@@ -105,32 +106,6 @@ impl Default for TrainSettings {
     }
 }
 
-/// The parameters being learned.
-#[derive(Clone, Debug)]
-pub struct Model {
-    /// The decoder architecture.
-    pub decoder: Decoder,
-    /// Latent code.
-    pub z: Vec<f64>,
-    /// Decoder weights.
-    pub w: Vec<f64>,
-    /// Voxels that may hold smoke (the visual hull).
-    pub mask: Vec<bool>,
-}
-
-impl Model {
-    /// Shape of the decoder's grid.
-    pub fn decoder_shape(&self) -> [usize; 3] {
-        let r = self.decoder.res();
-        [r, r, r]
-    }
-
-    /// The density grid on `like`'s geometry.
-    pub fn density(&self, like: &Grid<f64>) -> Grid<f64> {
-        Grid::new(like.lo, like.hi, like.shape, self.decoder.forward(&self.z, &self.w, &self.mask))
-    }
-}
-
 /// One line of the training log.
 #[derive(Clone, Debug, Default)]
 pub struct LogRow {
@@ -150,45 +125,6 @@ pub struct LogRow {
     pub max_density: f64,
     /// Seconds since the start of training.
     pub wall_s: f64,
-}
-
-/// What the training loop needs to know about the problem.
-pub struct Problem<'a> {
-    /// The scene: training cameras first, then held-out ones; its density is replaced every update.
-    pub scene: &'a Scene,
-    /// Target images of the training cameras (the first `targets.len()` cameras).
-    pub targets: &'a [Image],
-    /// Target images of the remaining (held-out) cameras.
-    pub held_out: &'a [Image],
-    /// Ground-truth density, for the log only.
-    pub truth: Option<&'a Grid<f64>>,
-}
-
-/// Relative L1 error `|a - b|_1 / |b|_1` over the masked voxels.
-pub fn rel_l1(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for i in 0..a.len() {
-        if mask[i] {
-            num += (a[i] - b[i]).abs();
-            den += b[i].abs();
-        }
-    }
-    if den == 0.0 {
-        0.0
-    } else {
-        num / den
-    }
-}
-
-/// Relative RMSE of `ours` against `reference`.
-pub fn rel_rmse(ours: &[f64], reference: &[f64]) -> f64 {
-    let num: f64 = ours.iter().zip(reference).map(|(a, b)| (a - b).powi(2)).sum();
-    let den: f64 = reference.iter().map(|b| b * b).sum();
-    if den == 0.0 {
-        0.0
-    } else {
-        (num / den).sqrt()
-    }
 }
 
 /// Trains `model` in place; `observe(row, model, images)` sees every log row

@@ -2,13 +2,13 @@
 //! `error_vs_time`), cached on disk and keyed by the density's bits, so a
 //! changed plume generator or order renders it anew.
 
-use dualphoton::error::Result;
-use dualphoton::io::manifest::{git_revision, write_json};
-use dualphoton::io::npy;
-use dualphoton::render::metrics::reference_noise;
-use dualphoton::render::path::{render_path_with_progress, PathOptions};
-use dualphoton::render::Image;
-use dualphoton::scene::Scene;
+use crate::error::Result;
+use crate::eval::metrics::reference_noise;
+use crate::image::Image;
+use crate::io::manifest::{git_revision, write_json};
+use crate::io::npy;
+use crate::render::path::{render_path_with_progress, PathOptions};
+use crate::scene::Scene;
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;

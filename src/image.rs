@@ -1,4 +1,6 @@
-//! A monochrome radiance image: row-major, row 0 at the top.
+//! A monochrome radiance image: row-major, row 0 at the top. Every layer
+//! shares this type: renderers make it, losses and metrics compare it,
+//! `io` writes it.
 
 /// Radiance per pixel (W/(sr m^2) in the scene's units).
 #[derive(Clone, Debug, PartialEq)]
@@ -34,4 +36,15 @@ impl Image {
         }
         out
     }
+}
+
+/// The 99.5th percentile of the positive finite values, or 1 if there are
+/// none: the white point of a PNG preview and the scale of a silhouette.
+pub fn auto_white(values: &[f64]) -> f64 {
+    let mut pos: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0 && v.is_finite()).collect();
+    if pos.is_empty() {
+        return 1.0;
+    }
+    pos.sort_by(|a, b| a.total_cmp(b));
+    pos[((pos.len() - 1) as f64 * 0.995).round() as usize]
 }

@@ -1,0 +1,12 @@
+//! Reconstruction: from images to a density. The problem (scene, target
+//! images, the paper's setup), the visual hull, the resolution levels of
+//! coarse-to-fine training, the gradients of the loss with respect to the
+//! model's parameters, Adam, the training loop and a whole reconstruction.
+
+pub mod adam;
+pub mod hull;
+pub mod level;
+pub mod param_grad;
+pub mod problem;
+pub mod reconstruct;
+pub mod train;
