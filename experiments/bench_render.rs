@@ -18,6 +18,7 @@ use dualphoton::data::plume::plume;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::{block_rel_rmse, reference_noise, rel_mean_diff};
 use dualphoton::eval::reference::{reference, REF_SEED};
+use dualphoton::eval::stats::median;
 use dualphoton::io::manifest::{git_revision, write_json};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::render::photon::Timings;
@@ -57,11 +58,6 @@ struct Args {
 /// Seed of the plume.
 const SEED: u64 = 0;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
-}
-
 fn training_scene(res: usize) -> Scene {
     let mut scene = rig::paper_scene(plume(res, SEED), res);
     scene.cameras.truncate(4);
@@ -82,7 +78,7 @@ fn timed(scene: &Scene, repeats: usize) -> (PhotonRender, Vec<Timings>) {
 
 /// Median of one stage's time over repeats.
 fn median_of(times: &[Timings], stage: fn(&Timings) -> f64) -> f64 {
-    median(times.iter().map(stage).collect())
+    median(&times.iter().map(stage).collect::<Vec<_>>())
 }
 
 fn main() -> std::process::ExitCode {

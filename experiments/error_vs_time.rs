@@ -16,6 +16,7 @@ use dualphoton::error::{Error, Result};
 use dualphoton::eval::metrics::{block_rel_rmse, reference_noise};
 use dualphoton::eval::metrics::{pearson, rel_l1, rel_rmse};
 use dualphoton::eval::reference::reference;
+use dualphoton::eval::stats::median;
 use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, write_json};
 use dualphoton::io::plot::{line_chart, Axes, Series};
@@ -224,10 +225,6 @@ fn renderer(args: &Args, summary: &mut String) -> Result<()> {
     let voxel = scene.density.voxel_size().max();
     let error =
         |images: &[dualphoton::image::Image]| block_rel_rmse(images, &reference.radiance, Some(&reference.std_err), 4);
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
-    };
 
     let mut csv = String::from("method,photons,radius_voxels,spp,seconds,block_rel_rmse\n");
     let mut series = vec![];
@@ -255,7 +252,7 @@ fn renderer(args: &Args, summary: &mut String) -> Result<()> {
                 last = Some(render_photon(&s).images);
                 times.push(t.elapsed().as_secs_f64());
             }
-            let (t, e) = (median(times), error(&last.unwrap_or_default()));
+            let (t, e) = (median(&times), error(&last.unwrap_or_default()));
             eprintln!("  photon mapping: {photons} photons, r = {radius} vox: {t:.3} s, {:.2} %", 100.0 * e);
             let _ = writeln!(csv, "photon,{photons},{radius},{},{t:.4},{e:.5}", scene.render.spp);
             let _ = writeln!(

@@ -17,6 +17,7 @@
 
 use clap::Parser;
 use dualphoton::error::{Error, Result};
+use dualphoton::eval::stats::median;
 use dualphoton::grad::forward::Directions;
 use dualphoton::grad::reverse::Subset;
 use dualphoton::io::manifest::{git_revision, peak_memory_mib, reset_peak_memory, write_json};
@@ -239,12 +240,6 @@ fn total_variance(xs: &[Vec<f64>]) -> f64 {
     }
     let m = mean_of(xs);
     xs.iter().map(|x| dist2(x, &m)).sum::<f64>() / (xs.len() - 1) as f64
-}
-
-fn median(xs: &[f64]) -> f64 {
-    let mut v = xs.to_vec();
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
 }
 
 /// The statistics of one method for one part at one point.

@@ -24,7 +24,7 @@ pub enum Purpose {
 pub struct Rng(Pcg64);
 
 /// SplitMix64 finaliser: spreads nearby integers over all 64 bits.
-fn mix(mut z: u64) -> u64 {
+pub fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);

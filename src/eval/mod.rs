@@ -3,3 +3,4 @@
 
 pub mod metrics;
 pub mod reference;
+pub mod stats;

@@ -12,13 +12,10 @@ use super::splat::{Kernel, SplatGeometry};
 use crate::ad::Real;
 use crate::image::Image;
 use crate::scene::Scene;
+use crate::volume::majorant::MAJORANT_BLOCK;
 use crate::volume::{Grid, Majorant};
 use rayon::prelude::*;
 use std::time::Instant;
-
-/// Voxels per majorant block edge: small enough to skip the plume's empty
-/// surroundings, large enough that the block walk is cheap.
-pub const MAJORANT_BLOCK: usize = 4;
 
 /// Wall-clock seconds per stage.
 #[derive(Clone, Debug, Default)]

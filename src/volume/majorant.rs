@@ -4,6 +4,10 @@
 use super::grid::Grid;
 use crate::math::{Ray, Vec3};
 
+/// Voxels per majorant block edge, for every renderer: small enough to skip
+/// the plume's empty surroundings, large enough that the block walk is cheap.
+pub const MAJORANT_BLOCK: usize = 4;
+
 /// Upper bounds of the trilinear density over cubic blocks of `block` voxels.
 #[derive(Clone, Debug)]
 pub struct Majorant {

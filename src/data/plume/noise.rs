@@ -6,19 +6,12 @@
 //! and is the same function whatever order or thread evaluates it.
 
 use crate::math::Vec3;
+use crate::rng::mix;
 
 /// Gradient noise in about [-1, 1], zero at every integer lattice point.
 #[derive(Clone, Copy, Debug)]
 pub struct Noise {
     seed: u64,
-}
-
-/// SplitMix64 finaliser (as in `crate::rng`): spreads nearby integers over 64 bits.
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 /// Quintic fade `6t^5 - 15t^4 + 10t^3`: C2 across lattice cells.
