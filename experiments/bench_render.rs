@@ -1,4 +1,4 @@
-//! Renderer speed and accuracy on the paper rig (issue 2, item 7).
+//! Renderer speed and accuracy on the paper rig.
 //!
 //! For each resolution (64^3 with 64x64 images, 128^3 with 128x128): the
 //! four training cameras, three lights, up to 3rd order, the built-in plume.
@@ -16,20 +16,19 @@
 use clap::Parser;
 use dualphoton::data::plume::plume;
 use dualphoton::error::Result;
-use dualphoton::eval::metrics::{block_rel_rmse, reference_noise, rel_mean_diff};
+use dualphoton::eval::metrics::{reference_noise, rel_mean_diff};
 use dualphoton::eval::reference::{reference, REF_SEED};
-use dualphoton::eval::stats::median;
-use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::eval::sweep::{error, median_of, photon_sweep, timed, SweepPoint, ERROR_BLOCK};
+use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
-use dualphoton::render::photon::Timings;
-use dualphoton::render::{render_photon, PhotonRender};
-use dualphoton::scene::{rig, Scene};
-use serde_json::json;
+use dualphoton::io::rows::write_rows;
+use dualphoton::scene::rig;
+use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-#[derive(Parser)]
+#[derive(Parser, Serialize)]
 #[command(about = "Photon-mapping speed and error against a path-traced reference on the paper rig")]
 struct Args {
     /// Resolutions to run (grid res^3, images res x res).
@@ -58,31 +57,43 @@ struct Args {
 /// Seed of the plume.
 const SEED: u64 = 0;
 
-fn training_scene(res: usize) -> Scene {
-    let mut scene = rig::paper_scene(plume(res, SEED), res);
-    scene.cameras.truncate(4);
-    scene
-}
-
-/// The last of `repeats` renders, and the stage times of all of them.
-fn timed(scene: &Scene, repeats: usize) -> (PhotonRender, Vec<Timings>) {
-    let mut times = vec![];
-    let mut last = None;
-    for _ in 0..repeats.max(1) {
-        let r = render_photon(scene);
-        times.push(r.timings.clone());
-        last = Some(r);
-    }
-    (last.unwrap(), times)
-}
-
-/// Median of one stage's time over repeats.
-fn median_of(times: &[Timings], stage: fn(&Timings) -> f64) -> f64 {
-    median(&times.iter().map(stage).collect::<Vec<_>>())
-}
-
 fn main() -> std::process::ExitCode {
     dualphoton::error::exit_code(run(Args::parse()))
+}
+
+/// Stage times of the default render at one resolution.
+#[derive(Serialize)]
+struct TimingRow {
+    res: usize,
+    photons: u64,
+    stored_photons: usize,
+    trace_s: f64,
+    gather_s: f64,
+    camera_s: f64,
+    single_scattering_only_s: f64,
+    total_s: f64,
+    photons_per_s: f64,
+    block_rel_rmse: f64,
+    threads: usize,
+}
+
+/// One point of the photon-count and radius sweep.
+#[derive(Serialize)]
+struct SweepRow {
+    res: usize,
+    photons: u64,
+    radius_voxels: f64,
+    radius: f64,
+    total_s: f64,
+    block_rel_rmse: f64,
+    mean_rel_diff: f64,
+}
+
+impl SweepRow {
+    fn new(res: usize, p: SweepPoint) -> Self {
+        let SweepPoint { photons, radius_voxels, radius, seconds, block_rel_rmse, mean_rel_diff } = p;
+        SweepRow { res, photons, radius_voxels, radius, total_s: seconds, block_rel_rmse, mean_rel_diff }
+    }
 }
 
 fn run(mut args: Args) -> Result<()> {
@@ -95,121 +106,89 @@ fn run(mut args: Args) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out)?;
     let started = Instant::now();
-    let mut timing =
-        csv::Writer::from_path(args.out.join("timing.csv")).map_err(|e| dualphoton::Error(e.to_string()))?;
-    timing
-        .write_record([
-            "res",
-            "photons",
-            "stored_photons",
-            "trace_s",
-            "gather_s",
-            "camera_s",
-            "single_scattering_only_s",
-            "total_s",
-            "photons_per_s",
-            "block_rel_rmse",
-            "threads",
-        ])
-        .map_err(|e| dualphoton::Error(e.to_string()))?;
-    let mut sweep = csv::Writer::from_path(args.out.join("sweep.csv")).map_err(|e| dualphoton::Error(e.to_string()))?;
-    sweep
-        .write_record(["res", "photons", "radius_voxels", "radius", "total_s", "block_rel_rmse", "mean_rel_diff"])
-        .map_err(|e| dualphoton::Error(e.to_string()))?;
+    let (mut timing, mut sweep, mut series) = (vec![], vec![], vec![]);
     let mut summary =
         String::from("# Renderer speed and error (paper rig, 4 training cameras, 3 lights, orders 1-3)\n\n");
-    let mut series = vec![];
     for (n, &res) in args.res.iter().enumerate() {
         let spp = args.ref_spp.get(n).copied().unwrap_or(4096);
-        let scene = training_scene(res);
+        let scene = rig::paper_training_scene(plume(res, SEED), res);
         eprintln!("res {res}: reference at {spp} spp");
         let reference = reference(&scene, SEED, spp, &args.out.join(format!("reference_{res}")))?;
-        let noise = reference_noise(&reference.radiance, &reference.std_err, 4);
+        let noise = reference_noise(&reference.radiance, &reference.std_err, ERROR_BLOCK);
         let voxel = scene.density.voxel_size().max();
 
         // Stage timing at the defaults, plus a single-scattering-only render.
         let (r, times) = timed(&scene, args.repeats);
-        let trace = median_of(&times, |t| t.trace);
-        let gather = median_of(&times, |t| t.gather);
-        let camera = median_of(&times, |t| t.camera);
-        let total = median_of(&times, |t| t.total);
         let mut single_scene = scene.clone();
         single_scene.medium.max_order = 1;
-        let single = median_of(&timed(&single_scene, args.repeats).1, |t| t.total);
-        let err = block_rel_rmse(&r.images, &reference.radiance, Some(&reference.std_err), 4);
-        let threads = rayon::current_num_threads();
-        timing
-            .write_record([
-                res.to_string(),
-                scene.render.photons.to_string(),
-                r.stored_photons.to_string(),
-                format!("{trace:.4}"),
-                format!("{gather:.4}"),
-                format!("{camera:.4}"),
-                format!("{single:.4}"),
-                format!("{total:.4}"),
-                format!("{:.0}", scene.render.photons as f64 / trace),
-                format!("{err:.4}"),
-                threads.to_string(),
-            ])
-            .map_err(|e| dualphoton::Error(e.to_string()))?;
+        let row = TimingRow {
+            res,
+            photons: scene.render.photons,
+            stored_photons: r.stored_photons,
+            trace_s: median_of(&times, |t| t.trace),
+            gather_s: median_of(&times, |t| t.gather),
+            camera_s: median_of(&times, |t| t.camera),
+            single_scattering_only_s: median_of(&timed(&single_scene, args.repeats).1, |t| t.total),
+            total_s: median_of(&times, |t| t.total),
+            photons_per_s: scene.render.photons as f64 / median_of(&times, |t| t.trace),
+            block_rel_rmse: error(&r.images, &reference),
+            threads: rayon::current_num_threads(),
+        };
         let _ = writeln!(
             summary,
             "## {res}^3, {res}x{res} images\n\n- reference: {spp} spp path tracing, block (4x4) noise {:.2} %\n\
-             - default render ({} photons, radius {:.1} voxels): total {:.3} s (median of {}; {threads} threads): tracing {:.3} s ({:.2} M photons/s), gathering {:.3} s, camera rays {:.3} s; single scattering alone {:.3} s\n\
+             - default render ({} photons, radius {:.1} voxels): total {:.3} s (median of {}; {} threads): tracing {:.3} s ({:.2} M photons/s), gathering {:.3} s, camera rays {:.3} s; single scattering alone {:.3} s\n\
              - block relative RMSE against the reference (its noise removed): {:.2} %, image-sum difference {:+.2} %\n",
             100.0 * noise,
-            scene.render.photons,
+            row.photons,
             scene.render.kernel_radius_for(&scene.density) / voxel,
-            total,
+            row.total_s,
             args.repeats,
-            trace,
-            scene.render.photons as f64 / trace / 1e6,
-            gather,
-            camera,
-            single,
-            100.0 * err,
+            row.threads,
+            row.trace_s,
+            row.photons_per_s / 1e6,
+            row.gather_s,
+            row.camera_s,
+            row.single_scattering_only_s,
+            100.0 * row.block_rel_rmse,
             100.0 * rel_mean_diff(&r.images, &reference.radiance),
         );
+        timing.push(row);
 
         // Error against time over photon count and radius.
         let _ = writeln!(
             summary,
             "| photons | radius (voxels) | time (s) | block rel. RMSE | image-sum diff |\n|---|---|---|---|---|"
         );
-        for &radius in &args.radii {
-            let mut points = vec![];
-            for &photons in &args.photons {
-                let mut s = scene.clone();
-                s.render.photons = photons;
-                s.render.kernel_radius = Some(radius * voxel);
-                let reps = if photons >= 1_000_000 { args.repeats.min(3) } else { args.repeats };
-                let (r, times) = timed(&s, reps);
-                let t = median_of(&times, |t| t.total);
-                let e = block_rel_rmse(&r.images, &reference.radiance, Some(&reference.std_err), 4);
-                let d = rel_mean_diff(&r.images, &reference.radiance);
-                eprintln!("  {photons} photons, radius {radius} voxels: {t:.3} s, block rel RMSE {:.2} %", 100.0 * e);
-                sweep
-                    .write_record([
-                        res.to_string(),
-                        photons.to_string(),
-                        radius.to_string(),
-                        format!("{:.5}", radius * voxel),
-                        format!("{t:.4}"),
-                        format!("{e:.5}"),
-                        format!("{d:.5}"),
-                    ])
-                    .map_err(|e| dualphoton::Error(e.to_string()))?;
-                let _ =
-                    writeln!(summary, "| {photons} | {radius} | {t:.3} | {:.2} % | {:+.2} % |", 100.0 * e, 100.0 * d);
-                points.push((t, 100.0 * e));
-            }
-            series.push(Series { name: format!("{res}^3, r = {radius} vox"), points, markers: true });
+        let repeats = |photons: u64| if photons >= 1_000_000 { args.repeats.min(3) } else { args.repeats };
+        let points = photon_sweep(&scene, &reference, &args.photons, &args.radii, repeats);
+        for p in &points {
+            let _ = writeln!(
+                summary,
+                "| {} | {} | {:.3} | {:.2} % | {:+.2} % |",
+                p.photons,
+                p.radius_voxels,
+                p.seconds,
+                100.0 * p.block_rel_rmse,
+                100.0 * p.mean_rel_diff
+            );
         }
+        for radius in &args.radii {
+            series.push(Series {
+                name: format!("{res}^3, r = {radius} vox"),
+                points: points
+                    .iter()
+                    .filter(|p| p.radius_voxels == *radius)
+                    .map(|p| (p.seconds, 100.0 * p.block_rel_rmse))
+                    .collect(),
+                markers: true,
+            });
+        }
+        sweep.extend(points.into_iter().map(|p| SweepRow::new(res, p)));
         summary.push('\n');
     }
-    timing.flush()?;
-    sweep.flush()?;
+    write_rows(&args.out.join("timing.csv"), &timing)?;
+    write_rows(&args.out.join("sweep.csv"), &sweep)?;
     line_chart(
         &args.out.join("error_vs_time.svg"),
         &Axes {
@@ -227,12 +206,20 @@ fn run(mut args: Args) -> Result<()> {
         started.elapsed().as_secs_f64()
     );
     std::fs::write(args.out.join("summary.md"), &summary)?;
-    write_json(
+    write_manifest(
         &args.out.join("manifest.json"),
-        &json!({"res": args.res, "ref_spp": args.ref_spp, "repeats": args.repeats, "photons": args.photons,
-                "radii_voxels": args.radii, "plume_seed": SEED, "reference_seed": REF_SEED,
-                "threads": rayon::current_num_threads(), "git": git_revision(), "seconds": started.elapsed().as_secs_f64()}),
+        &Manifest { settings: &args, plume_seed: SEED, reference_seed: REF_SEED },
+        started.elapsed().as_secs_f64(),
     )?;
     print!("{summary}");
     Ok(())
+}
+
+/// What the manifest records besides provenance.
+#[derive(Serialize)]
+struct Manifest<'a> {
+    #[serde(flatten)]
+    settings: &'a Args,
+    plume_seed: u64,
+    reference_seed: u64,
 }

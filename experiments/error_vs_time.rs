@@ -1,4 +1,4 @@
-//! Error against run time (issue 5, item 2).
+//! Error against run time.
 //!
 //! 1. Reconstruction: the main job's training, the same wall-clock budget
 //!    for every estimator (coarse to fine by time: the first 80 % of the
@@ -13,19 +13,20 @@
 
 use clap::Parser;
 use dualphoton::error::{Error, Result};
-use dualphoton::eval::metrics::{block_rel_rmse, reference_noise};
-use dualphoton::eval::metrics::{pearson, rel_l1, rel_rmse};
+use dualphoton::eval::metrics::{pearson, reference_noise, rel_l1, rel_rmse};
 use dualphoton::eval::reference::reference;
-use dualphoton::eval::stats::median;
+use dualphoton::eval::sweep::{error, photon_sweep, ERROR_BLOCK};
 use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, write_json};
 use dualphoton::io::plot::{line_chart, Axes, Series};
+use dualphoton::io::rows::write_rows;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::recon::train::{train, LogRow, TrainSettings};
 use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
+use serde::Serialize;
 use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -215,19 +216,23 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
     Ok(())
 }
 
+/// One renderer configuration: photon mapping or the path tracer.
+#[derive(Serialize)]
+struct RendererRow {
+    method: &'static str,
+    photons: Option<u64>,
+    radius_voxels: Option<f64>,
+    spp: u32,
+    seconds: f64,
+    block_rel_rmse: f64,
+}
+
 /// Part 2: photon mapping over photon counts and radii, and the path tracer, against the reference.
 fn renderer(args: &Args, summary: &mut String) -> Result<()> {
-    let mut scene = rig::paper_scene(dualphoton::data::plume::plume(args.res, args.seed), args.res);
-    scene.cameras.truncate(rig::HELD_OUT_CAMERA);
+    let scene = rig::paper_training_scene(dualphoton::data::plume::plume(args.res, args.seed), args.res);
     eprintln!("renderer: reference at {} spp ({})", args.ref_spp, args.reference_dir.display());
     let reference = reference(&scene, args.seed, args.ref_spp, &args.reference_dir)?;
-    let noise = reference_noise(&reference.radiance, &reference.std_err, 4);
-    let voxel = scene.density.voxel_size().max();
-    let error =
-        |images: &[dualphoton::image::Image]| block_rel_rmse(images, &reference.radiance, Some(&reference.std_err), 4);
-
-    let mut csv = String::from("method,photons,radius_voxels,spp,seconds,block_rel_rmse\n");
-    let mut series = vec![];
+    let noise = reference_noise(&reference.radiance, &reference.std_err, ERROR_BLOCK);
     let _ = writeln!(
         summary,
         "\n## Renderer error against render time\n\n\
@@ -239,46 +244,61 @@ fn renderer(args: &Args, summary: &mut String) -> Result<()> {
         scene.render.spp,
         args.repeats
     );
-    for &radius in &args.radii {
-        let mut points = vec![];
-        for &photons in &args.photons {
-            let mut s = scene.clone();
-            s.render.photons = photons;
-            s.render.kernel_radius = Some(radius * voxel);
-            let mut times = vec![];
-            let mut last = None;
-            for _ in 0..args.repeats.max(1) {
-                let t = Instant::now();
-                last = Some(render_photon(&s).images);
-                times.push(t.elapsed().as_secs_f64());
-            }
-            let (t, e) = (median(&times), error(&last.unwrap_or_default()));
-            eprintln!("  photon mapping: {photons} photons, r = {radius} vox: {t:.3} s, {:.2} %", 100.0 * e);
-            let _ = writeln!(csv, "photon,{photons},{radius},{},{t:.4},{e:.5}", scene.render.spp);
-            let _ = writeln!(
-                summary,
-                "| photon mapping | {photons} | {radius} | {} | {t:.3} | {:.2} % |",
-                scene.render.spp,
-                100.0 * e
-            );
-            points.push((t, 100.0 * e));
-        }
-        series.push(Series { name: format!("photon mapping, r = {radius} vox"), points, markers: true });
-    }
-    let mut points = vec![];
+    let spp = scene.render.spp;
+    let points = photon_sweep(&scene, &reference, &args.photons, &args.radii, |_| args.repeats);
+    let mut rows: Vec<RendererRow> = points
+        .iter()
+        .map(|p| RendererRow {
+            method: "photon",
+            photons: Some(p.photons),
+            radius_voxels: Some(p.radius_voxels),
+            spp,
+            seconds: p.seconds,
+            block_rel_rmse: p.block_rel_rmse,
+        })
+        .collect();
     for &spp in &args.path_spp {
         let opts = PathOptions { spp, seed: 99, max_order: None, min_order: 1 };
         let t = Instant::now();
         let r = render_path(&scene, &opts);
-        let t = t.elapsed().as_secs_f64();
-        let e = error(&r.radiance);
-        eprintln!("  path tracing: {spp} spp: {t:.3} s, {:.2} %", 100.0 * e);
-        let _ = writeln!(csv, "path,,,{spp},{t:.4},{e:.5}");
-        let _ = writeln!(summary, "| path tracing | | | {spp} | {t:.3} | {:.2} % |", 100.0 * e);
-        points.push((t, 100.0 * e));
+        let seconds = t.elapsed().as_secs_f64();
+        let block_rel_rmse = error(&r.radiance, &reference);
+        eprintln!("  path tracing: {spp} spp: {seconds:.3} s, {:.2} %", 100.0 * block_rel_rmse);
+        rows.push(RendererRow { method: "path", photons: None, radius_voxels: None, spp, seconds, block_rel_rmse });
     }
-    series.push(Series { name: "path tracing (unbiased)".into(), points, markers: true });
-    std::fs::write(args.out.join("renderer.csv"), csv)?;
+    for r in &rows {
+        let (name, opt) = (if r.method == "path" { "path tracing" } else { "photon mapping" }, |v: Option<String>| {
+            v.unwrap_or_default()
+        });
+        let _ = writeln!(
+            summary,
+            "| {name} | {} | {} | {} | {:.3} | {:.2} % |",
+            opt(r.photons.map(|p| p.to_string())),
+            opt(r.radius_voxels.map(|v| v.to_string())),
+            r.spp,
+            r.seconds,
+            100.0 * r.block_rel_rmse
+        );
+    }
+    let mut series: Vec<Series> = args
+        .radii
+        .iter()
+        .map(|radius| Series {
+            name: format!("photon mapping, r = {radius} vox"),
+            points: rows
+                .iter()
+                .filter(|r| r.radius_voxels == Some(*radius))
+                .map(|r| (r.seconds, 100.0 * r.block_rel_rmse))
+                .collect(),
+            markers: true,
+        })
+        .collect();
+    series.push(Series {
+        name: "path tracing (unbiased)".into(),
+        points: rows.iter().filter(|r| r.method == "path").map(|r| (r.seconds, 100.0 * r.block_rel_rmse)).collect(),
+        markers: true,
+    });
+    write_rows(&args.out.join("renderer.csv"), &rows)?;
     line_chart(
         &args.out.join("renderer_error_vs_time.svg"),
         &Axes {

@@ -4,3 +4,4 @@
 pub mod metrics;
 pub mod reference;
 pub mod stats;
+pub mod sweep;

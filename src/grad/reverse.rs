@@ -18,8 +18,8 @@ use crate::ad::tape::{self, Var};
 use crate::image::Image;
 use crate::render::frozen::Frozen;
 use crate::render::march::Step;
+use crate::render::splat::phase_towards;
 use crate::rng::{Purpose, Rng};
-use crate::volume::phase::hg_eval;
 use crate::volume::Grid;
 use rayon::prelude::*;
 
@@ -210,22 +210,15 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
             (0..frozen.photons.len())
                 .into_par_iter()
                 .map(|p| {
-                    let photon = &frozen.photons[p];
-                    let range = kernel.start[p]..kernel.start[p + 1];
+                    // The adjoint of the deposit in `SplatGeometry::estimate_with`.
                     let mut adj = 0.0;
                     for (c, cam) in scene.cameras.iter().enumerate().take(targets.len()) {
-                        let to_cam = cam.position - photon.pos;
-                        let dist = to_cam.norm();
-                        if dist == 0.0 {
+                        let Some(phase) = phase_towards(&frozen.photons[p], &cam.position, m.g) else {
                             continue;
-                        }
+                        };
                         let node_adj = &total[voxels + c * nodes..voxels + (c + 1) * nodes];
-                        let s: f64 = kernel.nodes[range.clone()]
-                            .iter()
-                            .zip(&kernel.weights[range.clone()])
-                            .map(|(&n, &w)| node_adj[n as usize] * w as f64)
-                            .sum();
-                        adj += s * m.albedo * hg_eval(m.g, photon.dir.dot(&(to_cam / dist)));
+                        let s: f64 = kernel.deposits(p).map(|(n, w)| node_adj[n] * w).sum();
+                        adj += s * m.albedo * phase;
                     }
                     adj
                 })

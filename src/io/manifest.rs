@@ -48,3 +48,17 @@ pub fn peak_memory_mib() -> f64 {
         .and_then(|l| l.split_whitespace().nth(1).and_then(|kb| kb.parse::<f64>().ok()))
         .map_or(0.0, |kb| kb / 1024.0)
 }
+
+/// Writes a run's manifest: the fields of `settings` (any serde-serialisable
+/// settings struct, so no key is listed by hand) plus where the result came
+/// from: `git` revision, `wall_s` seconds and worker `threads`.
+pub fn write_manifest<T: serde::Serialize>(path: &Path, settings: &T, wall_s: f64) -> Result<()> {
+    let mut value = serde_json::to_value(settings).map_err(|e| Error(e.to_string()))?;
+    let Value::Object(map) = &mut value else {
+        return Err(Error::new("manifest: settings must serialise to a JSON object"));
+    };
+    map.insert("git".into(), git_revision().into());
+    map.insert("wall_s".into(), wall_s.into());
+    map.insert("threads".into(), rayon::current_num_threads().into());
+    write_json(path, &value)
+}

@@ -5,3 +5,4 @@ pub mod manifest;
 pub mod npy;
 pub mod plot;
 pub mod png;
+pub mod rows;

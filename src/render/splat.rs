@@ -43,6 +43,24 @@ pub struct Kernel {
     pub weights: Vec<f32>,
 }
 
+impl Kernel {
+    /// Photon `p`'s deposits: (flat node index, weight) pairs.
+    pub fn deposits(&self, p: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let range = self.start[p]..self.start[p + 1];
+        self.nodes[range.clone()].iter().zip(&self.weights[range]).map(|(&n, &w)| (n as usize, w as f64))
+    }
+}
+
+/// The phase function of light scattered at `photon` towards a camera at
+/// `camera`: `p_HG(g, w_photon . w_to_camera)`, the only part of a photon's
+/// contribution that depends on the camera. `None` where the photon sits
+/// exactly at the camera (no direction, and no contribution).
+pub fn phase_towards(photon: &Photon, camera: &Vec3, g: f64) -> Option<f64> {
+    let to_cam = camera - photon.pos;
+    let dist = to_cam.norm();
+    (dist != 0.0).then(|| hg_eval(g, photon.dir.dot(&(to_cam / dist))))
+}
+
 /// z-planes per parallel task of the estimate.
 const SLAB: usize = 4;
 
@@ -179,17 +197,13 @@ impl SplatGeometry {
                 let first = s * SLAB * plane;
                 let mut slab = vec![R::cst(0.0); ((s + 1) * SLAB).min(nz) * plane - first];
                 for &p in &reach[s] {
-                    let photon = &photons[p as usize];
-                    let to_cam = cameras[cam] - photon.pos;
-                    let dist = to_cam.norm();
-                    if dist == 0.0 {
+                    let Some(phase) = phase_towards(&photons[p as usize], &cameras[cam], g) else {
                         continue;
-                    }
-                    let value = power(p as usize) * (albedo * hg_eval(g, photon.dir.dot(&(to_cam / dist))));
-                    let range = kernel.start[p as usize]..kernel.start[p as usize + 1];
-                    for (&n, &w) in kernel.nodes[range.clone()].iter().zip(&kernel.weights[range]) {
-                        if let Some(v) = (n as usize).checked_sub(first).and_then(|i| slab.get_mut(i)) {
-                            *v += value * w as f64;
+                    };
+                    let value = power(p as usize) * (albedo * phase);
+                    for (n, w) in kernel.deposits(p as usize) {
+                        if let Some(v) = n.checked_sub(first).and_then(|i| slab.get_mut(i)) {
+                            *v += value * w;
                         }
                     }
                 }

@@ -77,3 +77,11 @@ pub fn paper_scene(density: Grid<f64>, res: usize) -> Scene {
         render: RenderSettings::default(),
     }
 }
+
+/// [`paper_scene`] with only the training cameras (0-3): what the renderer
+/// benchmarks measure.
+pub fn paper_training_scene(density: Grid<f64>, res: usize) -> Scene {
+    let mut scene = paper_scene(density, res);
+    scene.cameras.truncate(HELD_OUT_CAMERA);
+    scene
+}
