@@ -69,3 +69,25 @@ fn error_vs_time_smoke_run_writes_everything() {
     let (_, renders) = csv(&dir.join("renderer.csv"));
     assert!(renders.iter().all(|r| r[5].parse::<f64>().unwrap().is_finite()));
 }
+
+#[test]
+fn photon_diagnostics_smoke_run_compares_every_order() {
+    let dir = run(env!("CARGO_BIN_EXE_photon_diagnostics"), "photon-diagnostics");
+    let (_, orders) = csv(&dir.join("orders.csv"));
+    assert_eq!(orders.len(), 3, "orders 1-3");
+    assert!(orders.iter().all(|r| r.iter().all(|v| v.parse::<f64>().unwrap().is_finite())));
+    let (_, tails) = csv(&dir.join("tails.csv"));
+    for r in &tails {
+        let shares: Vec<f64> = r[2..].iter().map(|v| v.parse().unwrap()).collect();
+        assert!(shares.windows(2).all(|w| w[0] <= w[1]) && shares[2] <= 1.0 + 1e-12, "{shares:?}");
+    }
+}
+
+#[test]
+fn decoder_capacity_smoke_run_fits_the_truth() {
+    let dir = run(env!("CARGO_BIN_EXE_decoder_capacity"), "decoder-capacity");
+    let (head, rows) = csv(&dir.join("capacity.csv"));
+    let eps = head.iter().position(|h| h == "rel_l1_epsilon").unwrap();
+    let (first, last): (f64, f64) = (rows[0][eps].parse().unwrap(), rows.last().unwrap()[eps].parse().unwrap());
+    assert!(last < first, "fitting the truth directly must lower the error: {first} -> {last}");
+}

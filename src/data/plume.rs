@@ -84,7 +84,8 @@ pub struct PlumeStats {
 ///
 /// ```
 /// use dualphoton::math::Vec3;
-/// use dualphoton::volume::{plume::plume_stats, Grid};
+/// use dualphoton::data::plume::plume_stats;
+/// use dualphoton::volume::Grid;
 /// let g = Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [1, 2, 2], vec![0.0, 0.5, 1.5, 0.0]);
 /// let s = plume_stats(&g);
 /// assert_eq!((s.occupied, s.mean_occupied, s.max, s.fraction_occupied), (2, 1.0, 1.5, 0.5));
