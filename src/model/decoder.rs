@@ -102,18 +102,28 @@ impl Decoder {
         Ok(Decoder { latent, res, c0, convs, out_scale: OUT_SCALE, n_params: off })
     }
 
-    /// The default decoder for a `res^3` grid (`res` = 4 * 2^L, L >= 1): a
-    /// 64-d latent, `C0 = 4` base channels, and per intermediate grid of
-    /// edge `e` 16 channels if `e <= 8`, 8 if `e == 16`, 4 if `e >= 32`.
-    /// About 30k parameters at res 32..128, most of them in the linear layer.
+    /// The default decoder for a `res^3` grid (`res` = 4 * 2^L with
+    /// 1 <= L <= 8: 8, 16, 32, ..., 1024): a 64-d latent, `C0 = 4` base
+    /// channels, and per intermediate grid of edge `e` 16 channels if
+    /// `e <= 8`, 8 if `e == 16`, 4 if `e >= 32`. About 30k parameters at res
+    /// 32..128, most of them in the linear layer.
     ///
-    /// Panics if `res` is not 4 * 2^L with 1 <= L <= 8.
+    /// Errors if `res` is not one of those edges.
     ///
     /// ```
-    /// let d = dualphoton::model::Decoder::paper_small(32);
+    /// use dualphoton::model::Decoder;
+    /// let d = Decoder::paper_small(32)?;
     /// assert_eq!(d.param_count(), 29465);
+    /// assert!(Decoder::paper_small(24).is_err());
+    /// # Ok::<(), dualphoton::error::Error>(())
     /// ```
-    pub fn paper_small(res: usize) -> Decoder {
+    pub fn paper_small(res: usize) -> Result<Decoder> {
+        if !(res.is_power_of_two() && (2 * BASE..=BASE << MAX_CONVS).contains(&res)) {
+            bail!(
+                "the decoder needs a cubic grid of {BASE} * 2^n voxels per side (8, 16, 32, 64, 128, ..., {}), got {res}",
+                BASE << MAX_CONVS
+            );
+        }
         let mut channels = vec![4];
         let mut e = 2 * BASE;
         while e < res {
@@ -124,10 +134,7 @@ impl Decoder {
             });
             e *= 2;
         }
-        match Decoder::new(64, res, &channels) {
-            Ok(d) => d,
-            Err(e) => panic!("Decoder::paper_small: {e}"),
-        }
+        Decoder::new(64, res, &channels)
     }
 
     /// Size of the latent `z`.
@@ -223,7 +230,7 @@ mod tests {
 
     #[test]
     fn init_is_deterministic_and_small_positive_in_the_mask() {
-        let d = Decoder::paper_small(32);
+        let d = Decoder::paper_small(32).unwrap();
         assert_eq!(d.init(7), d.init(7));
         assert_ne!(d.init(7), d.init(8));
         assert_eq!(d.init_latent(7), d.init_latent(7));
@@ -248,11 +255,22 @@ mod tests {
         assert!(Decoder::new(0, 8, &[4]).is_err());
         assert!(Decoder::new(64, 8, &[]).is_err());
         assert!(Decoder::new(64, 16, &[4, 0]).is_err());
-        assert_eq!(Decoder::paper_small(32).param_count(), 29465);
-        assert_eq!(Decoder::paper_small(64).param_count(), 31261);
-        assert_eq!(Decoder::paper_small(128).param_count(), 32289);
-        let d = Decoder::paper_small(64);
+        assert_eq!(Decoder::paper_small(32).unwrap().param_count(), 29465);
+        assert_eq!(Decoder::paper_small(64).unwrap().param_count(), 31261);
+        assert_eq!(Decoder::paper_small(128).unwrap().param_count(), 32289);
+        let d = Decoder::paper_small(64).unwrap();
         assert_eq!(d.describe().lines().count(), 6);
         assert_eq!(d.init(1).len(), d.param_count());
+    }
+
+    #[test]
+    fn paper_small_needs_4_times_a_power_of_two() {
+        for res in [0, 1, 4, 12, 24, 48, 100, 2048, usize::MAX] {
+            let e = Decoder::paper_small(res).unwrap_err().0;
+            assert!(e.contains("4 * 2^n voxels per side") && e.ends_with(&format!("got {res}")), "{e}");
+        }
+        for res in [8, 16, 32, 64, 128, 256, 512, 1024] {
+            assert_eq!(Decoder::paper_small(res).unwrap().res(), res);
+        }
     }
 }

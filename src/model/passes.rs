@@ -73,13 +73,14 @@ impl Decoder {
     ///
     /// ```
     /// use dualphoton::model::Decoder;
-    /// let d = Decoder::paper_small(8);
+    /// let d = Decoder::paper_small(8)?;
     /// let (z, w) = (d.init_latent(1), d.init(1));
     /// let mut mask = vec![true; 8 * 8 * 8];
     /// mask[0] = false;
     /// let rho = d.forward(&z, &w, &mask);
     /// assert_eq!(rho[0], 0.0);
     /// assert!(rho.iter().all(|&r| r >= 0.0));
+    /// # Ok::<(), dualphoton::error::Error>(())
     /// ```
     pub fn forward<R: Real>(&self, z: &[R], w: &[R], mask: &[bool]) -> Vec<R> {
         self.check(z.len(), w.len(), mask.len());
@@ -102,12 +103,13 @@ impl Decoder {
     ///
     /// ```
     /// use dualphoton::model::Decoder;
-    /// let d = Decoder::paper_small(8);
+    /// let d = Decoder::paper_small(8)?;
     /// let (z, w) = (d.init_latent(1), d.init(1));
     /// let mask: Vec<bool> = (0..512).map(|v| v % 3 == 0).collect();
     /// let dense = d.forward(&z, &w, &mask);
     /// let inside: Vec<f64> = (0..512).filter(|v| mask[*v]).map(|v| dense[v]).collect();
     /// assert_eq!(d.forward_masked(&z, &w, &mask), inside);
+    /// # Ok::<(), dualphoton::error::Error>(())
     /// ```
     pub fn forward_masked<R: Real>(&self, z: &[R], w: &[R], mask: &[bool]) -> Vec<R> {
         self.check(z.len(), w.len(), mask.len());
@@ -126,11 +128,12 @@ impl Decoder {
     ///
     /// ```
     /// use dualphoton::model::Decoder;
-    /// let d = Decoder::paper_small(8);
+    /// let d = Decoder::paper_small(8)?;
     /// let (z, w) = (d.init_latent(1), d.init(1));
     /// let mask = vec![true; 512];
     /// let (gz, gw) = d.backward(&z, &w, &mask, &vec![1.0; 512]);
     /// assert_eq!((gz.len(), gw.len()), (64, d.param_count()));
+    /// # Ok::<(), dualphoton::error::Error>(())
     /// ```
     pub fn backward(&self, z: &[f64], w: &[f64], mask: &[bool], grad_out: &[f64]) -> (Vec<f64>, Vec<f64>) {
         self.check(z.len(), w.len(), mask.len());
@@ -209,7 +212,7 @@ mod tests {
         let deep = Decoder::new(6, 32, &[3, 4, 2]).unwrap();
         let scattered: Vec<bool> =
             normals(14, 32 * 32 * 32).iter().zip(ball(32, 9.0)).map(|(&u, b)| b || u > 2.5).collect();
-        vec![(Decoder::paper_small(16), ball(16, 6.5)), (deep, scattered)]
+        vec![(Decoder::paper_small(16).unwrap(), ball(16, 6.5)), (deep, scattered)]
     }
 
     /// Some coordinates of w: linear weight and bias, a weight and a bias of
@@ -284,7 +287,7 @@ mod tests {
 
     #[test]
     fn vector_lanes_equal_single_duals() {
-        let d = Decoder::paper_small(16);
+        let d = Decoder::paper_small(16).unwrap();
         let (z, w) = (d.init_latent(21), d.init(21));
         let mask = ball(16, 7.0);
         let (nz, nw) = (z.len(), w.len());
@@ -339,7 +342,7 @@ mod tests {
             format!("{:.1} ms (cpu {cpu:.1} ms)", t[7])
         }
         for (res, r) in [(64, 16.84), (64, 100.0), (128, 25.4)] {
-            let d = Decoder::paper_small(res);
+            let d = Decoder::paper_small(res).unwrap();
             let (z, w) = (d.init_latent(1), d.init(1));
             let mask = ball(res, r);
             let count = mask.iter().filter(|&&m| m).count();
