@@ -190,7 +190,7 @@ impl Decoder {
     /// Initial parameters, deterministic from `seed`: He-normal weights (std
     /// `sqrt(2 / fan_in)`, fan_in = latent for the linear layer and
     /// `C_in * 8` effective taps for a transposed convolution), zero biases,
-    /// except the last layer: weights at [`LAST_GAIN`] times He and bias
+    /// except the last layer: weights at `LAST_GAIN` = 0.12 times He and bias
     /// [`LAST_BIAS`], so the initial density (with [`Decoder::init_latent`])
     /// is about `LAST_BIAS * OUT_SCALE` = 0.005 plus noise, positive almost
     /// everywhere.
