@@ -192,3 +192,29 @@ fn scene_preset_writes_the_paper_rig() {
     ]);
     assert!(!bad.status.success());
 }
+
+#[test]
+fn fit_on_a_grid_the_decoder_cannot_make_is_an_error() {
+    let dir = temp_dir("fit24");
+    let path = write_scene(&dir, &valid_scene(), &blob(24), &[24, 24, 24]);
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).unwrap();
+    for cam in 0..2 {
+        npy::write_f32(&images.join(format!("cam{cam}.npy")), &[6, 8], &[1.0; 48]).unwrap();
+    }
+    let out = dualphoton(&[
+        "fit",
+        "--scene",
+        path.to_str().unwrap(),
+        "--images",
+        images.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+        "--iterations",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    expect_error(&out, "volume.density");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("4 * 2^n voxels per side") && stderr.trim_end().ends_with("got 24"), "{stderr}");
+}

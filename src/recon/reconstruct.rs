@@ -62,7 +62,7 @@ pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result
     if scene.density.shape != [res, res, res] {
         return Err(Error(format!("volume.density: the decoder needs a cubic grid, got {:?}", scene.density.shape)));
     }
-    let decoder = Decoder::paper_small(res);
+    let decoder = Decoder::paper_small(res).map_err(|e| Error(format!("volume.density: {e}")))?;
     let w = decoder.init(init_seed);
     let z = decoder.init_latent(init_seed);
     Ok(Model { decoder, z, w, mask })
