@@ -2,9 +2,8 @@
 //! frozen sample: dual lanes == per-coordinate duals, forward == reverse,
 //! both == central finite differences.
 
-mod common;
-
 use dualphoton::ad::dual::with_tangents;
+use dualphoton::eval::scenes::{look_at_origin, two_light_blob};
 use dualphoton::grad::forward::{coordinate_gradient, directional, random_gradient, Directions};
 use dualphoton::grad::loss::mse;
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
@@ -12,21 +11,13 @@ use dualphoton::image::Image;
 use dualphoton::math::Vec3;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
-use dualphoton::scene::{Light, Scene};
+use dualphoton::scene::Scene;
 use num_dual::Dual64;
 
-/// A 10^3 blob with two lights and two 6x6 cameras.
+/// The 10^3 two-light blob with a side camera added: two 6x6 cameras.
 fn scene(max_order: u32) -> Scene {
-    let lights = vec![
-        Light { position: Vec3::new(1.5, 0.8, 2.0), intensity: 100.0 },
-        Light { position: Vec3::new(-2.0, -0.3, -1.0), intensity: 60.0 },
-    ];
-    let cams = vec![common::camera(2.2, 30.0, 6), {
-        let mut c = common::camera(2.2, 30.0, 6);
-        c.position = Vec3::new(2.2, 0.3, 0.0);
-        c
-    }];
-    let mut s = common::scene(common::blob(10), common::medium(0.9, 0.6, max_order), lights, cams);
+    let mut s = two_light_blob(10, 0.6, max_order, 6);
+    s.cameras.push(look_at_origin(Vec3::new(2.2, 0.3, 0.0), 6, 30.0));
     s.render.photons = 2000;
     s.render.seed = 3;
     s

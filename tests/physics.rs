@@ -1,8 +1,10 @@
 //! Analytic checks of the transport pieces: phase function, transmittance,
-//! single scattering against an independent quadrature.
+//! single scattering of the photon mapper against an independent quadrature
+//! (`dualphoton::eval::quadrature`; the path tracer's is in `path_tracer.rs`).
 
 mod common;
 
+use dualphoton::eval::quadrature::{homogeneous_transmittance, single_scattering, Resolution};
 use dualphoton::math::{intersect_box, Ray, Vec3};
 use dualphoton::render::march::Marcher;
 use dualphoton::render::render_photon;
@@ -122,32 +124,6 @@ fn transmittance_through_homogeneous_slab_is_exponential() {
     }
 }
 
-/// ∫ over the camera axis of T_cam sigma_s p_HG I T_light / r^2 by Simpson's rule, all analytic.
-fn single_scattering_quadrature(rho: f64, albedo: f64, g: f64, cam: Vec3, light: &Light) -> f64 {
-    let sigma_t = 20.0 * rho;
-    let lo = Vec3::from_element(-0.5);
-    let hi = Vec3::from_element(0.5);
-    let ray = Ray { origin: cam, dir: (-cam).normalize() };
-    let (t0, t1) = intersect_box(&ray, &lo, &hi).unwrap();
-    let f = |t: f64| {
-        let x = ray.at(t);
-        let to_light = light.position - x;
-        let r = to_light.norm();
-        let shadow = Ray { origin: x, dir: to_light / r };
-        let inside = intersect_box(&shadow, &lo, &hi).map_or(0.0, |(a, b)| b.min(r) - a);
-        let mu = (-to_light / r).dot(&(-ray.dir));
-        (-sigma_t * (t - t0)).exp() * albedo * sigma_t * hg_eval(g, mu) * light.intensity * (-sigma_t * inside).exp()
-            / (r * r)
-    };
-    let n = 20_000;
-    let h = (t1 - t0) / n as f64;
-    let mut s = f(t0) + f(t1);
-    for i in 1..n {
-        s += f(t0 + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
-    }
-    s * h / 3.0
-}
-
 #[test]
 fn single_scattering_matches_quadrature_within_one_percent() {
     for (rho, g, light_pos) in [
@@ -166,7 +142,8 @@ fn single_scattering_matches_quadrature_within_one_percent() {
         );
         scene.render.spp = 64;
         let ours = render_photon(&scene).images[0].data[0];
-        let reference = single_scattering_quadrature(rho, 0.9, g, cam.position, &light);
+        let tr = homogeneous_transmittance(&scene, 20.0 * rho);
+        let reference = single_scattering(&scene, &cam, (0, 0), Resolution { sub: 1, steps: 20_000 }, &tr);
         assert!((ours - reference).abs() < 0.01 * reference, "rho {rho}, g {g}: {ours} vs quadrature {reference}");
     }
 }

@@ -13,21 +13,15 @@
 //! 12 % (g = 0.9, whose photon estimate is heavy-tailed: a photon heading
 //! for the camera weighs p_HG ≈ 15 against ≈ 0.02 for back-scatter).
 
-mod common;
-
+use dualphoton::eval::scenes::two_light_blob;
 use dualphoton::image::Image;
-use dualphoton::math::Vec3;
 use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
-use dualphoton::scene::{Light, Scene};
+use dualphoton::scene::Scene;
 
+/// The 16^3 two-light blob, one 16x16 camera.
 fn scene(g: f64, max_order: u32, seed: u64) -> Scene {
-    let lights = vec![
-        Light { position: Vec3::new(1.5, 0.8, 2.0), intensity: 100.0 },
-        Light { position: Vec3::new(-2.0, -0.3, -1.0), intensity: 60.0 },
-    ];
-    let mut s =
-        common::scene(common::blob(16), common::medium(0.9, g, max_order), lights, vec![common::camera(2.2, 30.0, 16)]);
+    let mut s = two_light_blob(16, g, max_order, 16);
     s.render.photons = 100_000;
     // One voxel: the blur bias at this coarse 16^3 grid is then about 1 % on image means.
     s.render.kernel_radius = Some(0.0625);

@@ -15,6 +15,7 @@
 //! empty are zero by construction (nothing is marched there); pass a
 //! `support` to [`Frozen::new`](crate::render::frozen::Frozen::new) to widen it.
 
+pub mod finite_diff;
 pub mod forward;
 pub mod loss;
 pub mod reverse;

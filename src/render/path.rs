@@ -347,337 +347,53 @@ impl<'a> Tracer<'a> {
 
 #[cfg(test)]
 mod tests {
+    //! Checks that need the tracer's internals; the path tracer's checks
+    //! against independent estimators (quadrature, a second Monte Carlo
+    //! estimator) are in `tests/path_tracer.rs`.
     use super::*;
     use crate::scene::{Light, Medium, RenderSettings};
-    use std::f64::consts::PI;
-
-    /// The HG phase written out from DESIGN.md §2, independent of `volume::phase`.
-    fn p_hg(g: f64, mu: f64) -> f64 {
-        (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
-    }
-
-    fn unit_box() -> (Vec3, Vec3) {
-        (Vec3::from_element(-0.5), Vec3::from_element(0.5))
-    }
-
-    /// A scene on the box [-0.5, 0.5]^3 with an `n^3` grid.
-    fn scene(n: usize, data: Vec<f64>, medium: Medium, lights: Vec<Light>, cameras: Vec<Camera>) -> Scene {
-        let (lo, hi) = unit_box();
-        Scene {
-            density: Grid::new(lo, hi, [n, n, n], data),
-            medium,
-            lights,
-            cameras,
-            render: RenderSettings::default(),
-        }
-    }
-
-    fn medium(sigma_t_scale: f64, albedo: f64, g: f64, max_order: u32) -> Medium {
-        Medium { sigma_t_scale, albedo, g, max_order }
-    }
-
-    fn light(x: f64, y: f64, z: f64, intensity: f64) -> Light {
-        Light { position: Vec3::new(x, y, z), intensity }
-    }
-
-    /// A camera at `position` looking at the origin.
-    fn camera(position: Vec3, res: usize, fov_y_deg: f64) -> Camera {
-        Camera { position, look_at: Vec3::zeros(), up: Vec3::new(0.0, 1.0, 0.0), fov_y_deg, width: res, height: res }
-    }
 
     fn opts(spp: u32, seed: u64, min_order: u32, max_order: u32) -> PathOptions {
         PathOptions { spp, seed, max_order: Some(max_order), min_order }
     }
 
-    /// Mean of an image and the standard error of that mean.
-    fn image_mean(r: &PathRender, cam: usize) -> (f64, f64) {
-        let (im, se) = (&r.radiance[cam], &r.std_err[cam]);
-        let n = im.data.len() as f64;
-        (im.data.iter().sum::<f64>() / n, se.data.iter().map(|s| s * s).sum::<f64>().sqrt() / n)
-    }
-
-    /// Pseudo-random densities in [0, 1) (a fixed stream).
-    fn noise_grid(n: usize, seed: u64) -> Vec<f64> {
-        let mut rng = Rng::new(seed, Purpose::Scene, 0);
-        (0..n * n * n).map(|_| rng.uniform()).collect()
-    }
-
-    /// Single scattering into pixel `(px, py)` by quadrature: a `sub x sub`
-    /// midpoint rule over the footprint, Simpson with `steps` intervals along
-    /// each ray; `tr(a, b)` is the transmittance between two points.
-    fn single_scatter_quadrature(
-        s: &Scene,
-        cam: &Camera,
-        px: usize,
-        py: usize,
-        sub: usize,
-        steps: usize,
-        tr: &dyn Fn(&Vec3, &Vec3) -> f64,
-    ) -> f64 {
-        let (lo, hi) = unit_box();
-        let m = &s.medium;
-        let mut total = 0.0;
-        for a in 0..sub {
-            for b in 0..sub {
-                let ray = cam.ray(px as f64 + (a as f64 + 0.5) / sub as f64, py as f64 + (b as f64 + 0.5) / sub as f64);
-                let Some((t0, t1)) = intersect_box(&ray, &lo, &hi) else { continue };
-                let f = |t: f64| {
-                    let x = ray.at(t);
-                    let rho: f64 = s.density.at(&x);
-                    let ls: f64 = s
-                        .lights
-                        .iter()
-                        .map(|l| {
-                            let w_l = (x - l.position).normalize(); // light -> x
-                            let r2 = (x - l.position).norm_squared();
-                            p_hg(m.g, w_l.dot(&-ray.dir)) * l.intensity * tr(&x, &l.position) / r2
-                        })
-                        .sum();
-                    tr(&ray.origin, &x) * m.albedo * m.sigma_t_scale * rho * ls
-                };
-                let h = (t1 - t0) / steps as f64;
-                let mut sum = f(t0) + f(t1);
-                for i in 1..steps {
-                    sum += f(t0 + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
-                }
-                total += sum * h / 3.0;
-            }
-        }
-        total / (sub * sub) as f64
-    }
-
-    /// Length of the segment `a -> b` inside the unit box.
-    fn length_in_box(a: &Vec3, b: &Vec3) -> f64 {
-        let (lo, hi) = unit_box();
-        let r = (b - a).norm();
-        match intersect_box(&Ray { origin: *a, dir: (b - a) / r }, &lo, &hi) {
-            Some((t0, t1)) => (t1.min(r) - t0).max(0.0),
-            None => 0.0,
-        }
-    }
-
-    fn assert_close(what: &str, mc: f64, se: f64, reference: f64, se_ref: f64) {
-        let tol = 3.0 * (se * se + se_ref * se_ref).sqrt() + 0.005 * reference.abs();
-        eprintln!(
-            "{what}: path {mc:.6e} +- {se:.2e}, reference {reference:.6e} +- {se_ref:.2e}, rel diff {:.4}",
-            (mc - reference) / reference
-        );
-        assert!((mc - reference).abs() <= tol, "{what}: {mc} vs {reference}, tolerance {tol}");
-    }
-
-    #[test]
-    fn single_scattering_matches_quadrature_homogeneous() {
-        let (rho, scale) = (0.05, 20.0); // sigma_t = 1
-        let cam = camera(Vec3::new(0.0, 0.0, 3.0), 8, 20.0);
-        let s = scene(
-            4,
-            vec![rho; 64],
-            medium(scale, 0.8, 0.5, 1),
-            vec![light(1.5, 1.0, 0.5, 10.0), light(-0.3, -2.0, -1.0, 5.0)],
-            vec![cam.clone()],
-        );
-        let r = render_path(&s, &opts(8192, 1, 1, 1));
-        let tr = |a: &Vec3, b: &Vec3| (-rho * scale * length_in_box(a, b)).exp();
-        let (px, py) = (3, 4);
-        let q = single_scatter_quadrature(&s, &cam, px, py, 8, 400, &tr);
-        let i = py * 8 + px;
-        assert_close("pixel (3, 4)", r.radiance[0].data[i], r.std_err[0].data[i], q, 0.0);
-        let q_mean =
-            (0..64).map(|i| single_scatter_quadrature(&s, &cam, i % 8, i / 8, 4, 200, &tr)).sum::<f64>() / 64.0;
-        let (m, se) = image_mean(&r, 0);
-        assert_close("image mean", m, se, q_mean, 0.0);
-    }
-
-    #[test]
-    fn single_scattering_matches_quadrature_heterogeneous() {
-        // Random trilinear density on a 10^3 grid, zero for x > 0.05 (voxels
-        // i >= 5): blocks of 4 give a loose majorant, an empty block column
-        // that clips the occupied box, the clamped outer shell, ratio tracking.
-        let n = 10;
-        let scale = 3.0;
-        let mut data = noise_grid(n, 3);
-        for (v, idx) in data.iter_mut().zip(0..) {
-            if idx % n >= 5 {
-                *v = 0.0;
-            }
-        }
-        let cam = camera(Vec3::new(0.4, 0.9, 2.8), 1, 2.0);
-        let s = scene(n, data, medium(scale, 0.9, 0.7, 1), vec![light(2.0, 0.3, -1.5, 20.0)], vec![cam.clone()]);
-        let r = render_path(&s, &opts(40_000, 2, 1, 1));
-        let tr = |a: &Vec3, b: &Vec3| {
-            // Midpoint rule on the part of the segment inside the box.
-            let (lo, hi) = unit_box();
-            let d = b - a;
-            let len = d.norm();
-            let Some((t0, t1)) = intersect_box(&Ray { origin: *a, dir: d / len }, &lo, &hi) else { return 1.0 };
-            let t1 = t1.min(len);
-            let k = 300;
-            let h = (t1 - t0) / k as f64;
-            let tau: f64 =
-                (0..k).map(|i| s.density.at(&(a + d / len * (t0 + (i as f64 + 0.5) * h)))).sum::<f64>() * h * scale;
-            (-tau).exp()
-        };
-        let q = single_scatter_quadrature(&s, &cam, 0, 0, 4, 200, &tr);
-        assert_close("heterogeneous pixel", r.radiance[0].data[0], r.std_err[0].data[0], q, 0.0);
-    }
-
-    #[test]
-    fn double_scattering_matches_independent_estimator() {
-        // Order 2 in a homogeneous box against a different estimator: the
-        // first vertex uniform on the camera segment, the second uniform in
-        // direction and in distance to the box wall, analytic transmittances.
-        let (rho, scale, albedo, g) = (0.1, 20.0, 0.9, 0.6); // sigma_t = 2
-        let cam = camera(Vec3::new(0.5, 0.2, 2.5), 8, 25.0);
-        let l = light(2.0, 1.0, -1.0, 30.0);
-        let s = scene(4, vec![rho; 64], medium(scale, albedo, g, 3), vec![l.clone()], vec![cam.clone()]);
-        let r = render_path(&s, &opts(4096, 5, 2, 2));
-        let (m, se) = image_mean(&r, 0);
-
-        let (lo, hi) = unit_box();
-        let (sigma_t, sigma_s) = (rho * scale, albedo * rho * scale);
-        let mut rng = Rng::new(9, Purpose::Scene, 1);
-        let (n, mut sum, mut sum2) = (1_600_000, 0.0, 0.0);
-        for _ in 0..n {
-            let ray = cam.ray(rng.uniform() * 8.0, rng.uniform() * 8.0);
-            let mut v = 0.0;
-            if let Some((t0, t1)) = intersect_box(&ray, &lo, &hi) {
-                let t = t0 + rng.uniform() * (t1 - t0);
-                let x = ray.at(t);
-                let z = 1.0 - 2.0 * rng.uniform();
-                let phi = 2.0 * PI * rng.uniform();
-                let rxy = (1.0 - z * z).sqrt();
-                let w = Vec3::new(rxy * phi.cos(), rxy * phi.sin(), z); // uniform, pdf 1 / (4 pi)
-                let (_, s_exit) = intersect_box(&Ray { origin: x, dir: w }, &lo, &hi).unwrap();
-                let dist = rng.uniform() * s_exit; // pdf 1 / s_exit; dy = dist^2 d(dist) dw cancels 1 / dist^2
-                let y = x + w * dist;
-                let w_l = (y - l.position).normalize();
-                let light_in =
-                    l.intensity * (-sigma_t * length_in_box(&y, &l.position)).exp() / (y - l.position).norm_squared();
-                v = (t1 - t0)
-                    * (-sigma_t * (t - t0)).exp()
-                    * sigma_s
-                    * p_hg(g, (-w).dot(&-ray.dir))
-                    * 4.0
-                    * PI
-                    * s_exit
-                    * (-sigma_t * dist).exp()
-                    * sigma_s
-                    * p_hg(g, w_l.dot(&-w))
-                    * light_in;
-            }
-            sum += v;
-            sum2 += v * v;
-        }
-        let mean = sum / n as f64;
-        let se_ref = ((sum2 / n as f64 - mean * mean) / (n - 1) as f64).sqrt();
-        assert_close("order-2 image mean", m, se, mean, se_ref);
-    }
-
-    #[test]
-    fn zero_density_is_exactly_black() {
-        let cams = vec![camera(Vec3::new(0.0, 0.0, 3.0), 8, 40.0), camera(Vec3::new(0.0, 0.0, 0.2), 4, 90.0)];
-        let s = scene(4, vec![0.0; 64], medium(20.0, 0.9, 0.9, 3), vec![light(0.0, 0.0, 0.0, 100.0)], cams);
-        let r = render_path(&s, &opts(16, 0, 1, 3));
-        assert_eq!(r.samples, (64 + 16) * 16);
-        for im in r.radiance.iter().chain(&r.std_err) {
-            assert!(im.data.iter().all(|&v| v == 0.0));
-        }
-    }
-
-    #[test]
-    fn bit_identical_for_any_thread_count() {
-        let cams = vec![camera(Vec3::new(0.0, 0.0, 2.5), 8, 30.0), camera(Vec3::new(2.0, 0.5, 1.0), 6, 35.0)];
-        let s = scene(
-            6,
-            noise_grid(6, 4),
-            medium(10.0, 0.9, 0.8, 3),
-            vec![light(1.0, 2.0, 2.0, 50.0), light(-2.0, 0.0, 0.0, 20.0)],
-            cams,
-        );
-        let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| render_path(&s, &opts(8, 11, 1, 3)))
-        };
-        let (a, b) = (run(1), run(2));
-        assert_eq!(a.radiance, b.radiance);
-        assert_eq!(a.std_err, b.std_err);
-        assert!(a.radiance[1].data.iter().any(|&v| v > 0.0));
-    }
-
-    #[test]
-    fn progress_reaches_total() {
-        let s = scene(
-            4,
-            vec![0.1; 64],
-            medium(10.0, 0.9, 0.0, 2),
-            vec![light(0.0, 2.0, 0.0, 1.0)],
-            vec![camera(Vec3::new(0.0, 0.0, 2.0), 20, 40.0)],
-        );
-        let (calls, last) = (AtomicUsize::new(0), AtomicUsize::new(0));
-        render_path_with_progress(&s, &opts(1, 0, 1, 2), &|done, total| {
-            assert!(done <= total && total == 400);
-            calls.fetch_add(1, Ordering::Relaxed);
-            last.fetch_max(done, Ordering::Relaxed);
-        });
-        assert!(calls.into_inner() > 1);
-        assert_eq!(last.into_inner(), 400);
-    }
-
-    #[test]
-    fn orders_isolate_and_add_up() {
-        let cam = camera(Vec3::new(0.0, 0.5, 2.5), 8, 30.0);
-        let s = scene(6, noise_grid(6, 7), medium(8.0, 0.95, 0.5, 3), vec![light(1.5, 1.5, 1.0, 40.0)], vec![cam]);
-        let (one, two, both) = (
-            render_path(&s, &opts(1024, 1, 1, 1)),
-            render_path(&s, &opts(1024, 2, 2, 2)),
-            render_path(&s, &opts(1024, 3, 1, 2)),
-        );
-        let ((m1, s1), (m2, s2), (m12, s12)) = (image_mean(&one, 0), image_mean(&two, 0), image_mean(&both, 0));
-        assert!(m2 > 0.05 * m1, "order 2 should matter here: {m2} vs {m1}");
-        assert_close("order 1 + order 2 vs max_order 2", m1 + m2, (s1 * s1 + s2 * s2).sqrt(), m12, s12);
-    }
-
-    #[test]
-    fn forward_scattering_sign() {
-        // g = 0.9, thin medium: a light behind the medium shining into the
-        // camera must be far brighter than the same light beside the camera,
-        // for single scattering (NEE sign) and for order 2 alone (sign of the
-        // sampled continuation).
-        let cam = camera(Vec3::new(0.0, 0.0, 3.0), 8, 20.0);
-        let render = |l: Light, order: u32| {
-            let s = scene(4, vec![0.01; 64], medium(20.0, 0.9, 0.9, 2), vec![l], vec![cam.clone()]);
-            image_mean(&render_path(&s, &opts(64, 0, order, order)), 0).0
-        };
-        for order in [1, 2] {
-            let behind = render(light(0.0, 0.0, -3.0, 10.0), order);
-            let beside = render(light(0.3, 0.0, 3.0, 10.0), order);
-            eprintln!("order {order}: behind {behind:.3e}, camera side {beside:.3e}");
-            assert!(behind > 20.0 * beside, "order {order}: behind {behind} vs camera side {beside}");
-        }
-    }
-
     #[test]
     fn finite_in_extreme_cases() {
-        let cam = camera(Vec3::new(0.3, 0.2, 2.0), 8, 45.0);
-        let lights = || {
-            vec![
-                light(0.0, 0.0, 0.0, 50.0),
-                light(0.5, 0.1, -0.2, 10.0),
-                light(-0.5, 0.5, 0.5, 10.0),
-                light(0.0, 3.0, 0.0, 0.0),
-                light(1.0, 1.0, 2.0, 10.0),
-            ]
+        let cam = Camera {
+            position: Vec3::new(0.3, 0.2, 2.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            fov_y_deg: 45.0,
+            width: 8,
+            height: 8,
+        };
+        let light = |x, y, z, intensity| Light { position: Vec3::new(x, y, z), intensity };
+        let lights = vec![
+            light(0.0, 0.0, 0.0, 50.0),
+            light(0.5, 0.1, -0.2, 10.0),
+            light(-0.5, 0.5, 0.5, 10.0),
+            light(0.0, 3.0, 0.0, 0.0),
+            light(1.0, 1.0, 2.0, 10.0),
+        ];
+        // Unit box, `n^3` voxels.
+        let scene = |n: usize, data: Vec<f64>, sigma_t_scale, albedo, g| Scene {
+            density: Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [n, n, n], data),
+            medium: Medium { sigma_t_scale, albedo, g, max_order: 4 },
+            lights: lights.clone(),
+            cameras: vec![cam.clone()],
+            render: RenderSettings::default(),
+        };
+        let noise = |seed| {
+            let mut rng = Rng::new(seed, Purpose::Scene, 0);
+            (0..216).map(|_| rng.uniform()).collect::<Vec<f64>>()
         };
         let mut hot = vec![0.0; 216];
         hot[3 * 36 + 2 * 6 + 3] = 1e4 / 20.0;
         let cases = [
-            (
-                "optical depth 1e4",
-                scene(4, vec![1e4 / 20.0; 64], medium(20.0, 0.9, 0.9, 4), lights(), vec![cam.clone()]),
-            ),
-            ("one hot voxel", scene(6, hot, medium(20.0, 1.0, 0.5, 4), lights(), vec![cam.clone()])),
-            ("g = 0.99", scene(6, noise_grid(6, 1), medium(5.0, 1.0, 0.99, 4), lights(), vec![cam.clone()])),
-            ("g = -0.99", scene(6, noise_grid(6, 2), medium(5.0, 1.0, -0.99, 4), lights(), vec![cam.clone()])),
+            ("optical depth 1e4", scene(4, vec![1e4 / 20.0; 64], 20.0, 0.9, 0.9)),
+            ("one hot voxel", scene(6, hot, 20.0, 1.0, 0.5)),
+            ("g = 0.99", scene(6, noise(1), 5.0, 1.0, 0.99)),
+            ("g = -0.99", scene(6, noise(2), 5.0, 1.0, -0.99)),
         ];
         for (what, s) in &cases {
             let r = render_path(s, &opts(8, 0, 1, 4));
@@ -699,8 +415,7 @@ mod tests {
     #[ignore = "benchmark: cargo test --release --lib render::path::tests::bench -- --ignored --nocapture"]
     fn bench_sphere_64() {
         let n = 64;
-        let (lo, hi) = unit_box();
-        let mut g = Grid::new(lo, hi, [n, n, n], vec![0.0; n * n * n]);
+        let mut g = Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [n, n, n], vec![0.0; n * n * n]);
         for k in 0..n {
             for j in 0..n {
                 for i in 0..n {
@@ -737,7 +452,9 @@ mod tests {
             let t = std::time::Instant::now();
             let r = render_path(&s, &opts(spp, 0, 1, order));
             let dt = t.elapsed().as_secs_f64();
-            let (m, se) = image_mean(&r, 0);
+            let n = r.radiance[0].data.len() as f64;
+            let m = r.radiance[0].data.iter().sum::<f64>() / n;
+            let se = r.std_err[0].data.iter().map(|s| s * s).sum::<f64>().sqrt() / n;
             eprintln!(
                 "max_order {order}: {} samples in {dt:.2} s = {:.0} samples/s on {} threads; image mean {m:.4e} +- {se:.1e}",
                 r.samples,
