@@ -6,17 +6,21 @@ use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1, rel_rmse};
 use dualphoton::grad::Estimator;
+use dualphoton::io::figures::{table1_chart, Table1Bars};
 use dualphoton::io::manifest::{git_revision, write_json};
-use dualphoton::recon::problem::{paper_problem, PaperProblem};
-use dualphoton::recon::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
+use dualphoton::recon::outputs::Outputs;
+use dualphoton::recon::paper::{self, TABLE1};
+use dualphoton::recon::problem::{paper_problem, target_render, PaperProblem, Problem};
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
 use dualphoton::recon::train::{TrainSettings, WeightDirections};
 use dualphoton::scene::{file, rig};
-use serde_json::json;
+use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-#[derive(Parser)]
+/// The run's settings (after `--smoke`); they open its manifest.
+#[derive(Parser, Serialize)]
 #[command(about = "Reconstruct the built-in plume and regenerate the paper's Table 1 and Figs. 5-8")]
 struct Args {
     /// Grid resolution (res^3) and image size (res x res); the paper used 128.
@@ -70,9 +74,22 @@ struct Args {
     smoke: bool,
 }
 
-/// The paper's Table 1 (mean / max density over the hull voxels).
-const PAPER: [(&str, f64, f64); 3] =
-    [("before training", 0.0045, 0.0209), ("after training", 0.0417, 1.6234), ("ground truth", 0.0432, 1.3585)];
+/// What produced a run: its settings, then what they led to.
+#[derive(Serialize)]
+struct Manifest<'a> {
+    #[serde(flatten)]
+    settings: &'a Args,
+    /// Photons of the target images and the final renders.
+    target_photons: u64,
+    /// Samples per pixel of the target images and the final renders.
+    target_spp: u32,
+    hull_voxels: usize,
+    decoder: String,
+    decoder_parameters: usize,
+    git: String,
+    wall_s: f64,
+    threads: usize,
+}
 
 fn main() -> std::process::ExitCode {
     dualphoton::error::exit_code(run(Args::parse()))
@@ -96,54 +113,40 @@ fn run(mut args: Args) -> Result<()> {
     let estimator: Estimator = args.estimator.parse()?;
 
     // Ground truth and its images (more photons and samples than a training update).
-    let target_photons = if args.smoke { 20_000 } else { 1_000_000 };
+    let target_photons = if args.smoke { 20_000 } else { paper::TARGET_PHOTONS };
     eprintln!("rendering the ground truth ({target_photons} photons) ...");
     let PaperProblem { truth, mut scene, images } =
         paper_problem(args.res, args.seed, target_photons, args.extra_views);
     // The saved scene renders the targets as they were made.
-    scene.render.photons = target_photons;
-    scene.render.spp = 8;
-    scene.render.seed = args.seed.wrapping_add(4242);
+    target_render(&mut scene, args.seed, target_photons);
     file::save(&scene, &args.out, "scene")?;
     let n_train = rig::HELD_OUT_CAMERA + args.extra_views;
     let (targets, held_out) = images.split_at(n_train);
 
-    let settings = ReconstructSettings {
-        train: TrainSettings {
-            iterations: args.iterations,
-            estimator,
-            lanes: args.lanes,
-            weight_directions: args.weight_directions,
-            weight_mode,
-            lr_latent: args.lr_latent,
-            lr_weights: args.lr_weights,
-            sparsity: args.sparsity,
-            photons: args.photons,
-            spp: args.spp,
-            seed: args.seed,
-            coarse_fraction: args.coarse_fraction,
-            ..TrainSettings::default()
-        },
-        final_photons: scene.render.photons,
-        final_spp: scene.render.spp,
-        init_seed: args.seed,
+    let train = TrainSettings {
+        iterations: args.iterations,
+        estimator,
+        lanes: args.lanes,
+        weight_directions: args.weight_directions,
+        weight_mode,
+        lr_latent: args.lr_latent,
+        lr_weights: args.lr_weights,
+        sparsity: args.sparsity,
+        photons: args.photons,
+        spp: args.spp,
+        seed: args.seed,
+        coarse_fraction: args.coarse_fraction,
+        ..TrainSettings::default()
     };
-    let train_start = Instant::now();
-    let total = args.iterations;
-    let mut progress = |row: &dualphoton::recon::train::LogRow| {
-        let t = train_start.elapsed().as_secs_f64();
-        let done = row.iteration + 1;
-        eprint!(
-            "\riteration {done}/{total}  loss {:.4e}  held-out {:.4e}  eps {:.3}  {t:.0} s, ETA {:.0} s   ",
-            row.train_loss,
-            row.held_out_loss,
-            row.density_rel_l1,
-            t / done as f64 * (total - done) as f64
-        );
-    };
-    let r = reconstruct(&scene, targets, held_out, Some(&truth), &settings, &args.out, &mut progress)?;
+    let settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
+    let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
+    let mut outputs = Outputs::create(&args.out)?;
+    let r = reconstruct(&problem, &settings, &mut |p| {
+        outputs.log(p.row);
+        eprint!("\r{p}   ");
+    })?;
     eprintln!();
-    write_outputs(&r, &scene, targets, held_out, Some(&truth), &args.out)?;
+    outputs.finish(&r, &problem)?;
 
     // Table 1 and the error measures.
     let mask = &r.model.mask;
@@ -161,7 +164,8 @@ fn run(mut args: Args) -> Result<()> {
         "# Table 1: density over the {hull_voxels} hull voxels ({}^3 grid; the paper kept 68,771 of 128^3)\n\n| | mean | max | paper mean | paper max |\n|---|---|---|---|---|\n",
         args.res
     );
-    for (s, (name, pm, px)) in rows.iter().zip(PAPER) {
+    for (s, p) in rows.iter().zip(TABLE1) {
+        let (name, pm, px) = (p.name, p.mean, p.max);
         let _ = writeln!(csv, "{name},{:.6},{:.6},{pm},{px}", s.mean, s.max);
         let _ = writeln!(md, "| {name} | {:.4} | {:.4} | {pm} | {px} |", s.mean, s.max);
     }
@@ -186,17 +190,32 @@ fn run(mut args: Args) -> Result<()> {
     let _ = writeln!(csv, "mass_error_delta,{delta:.6},,,\nrel_l1_epsilon,{eps:.6},,,\npearson_r,{pr:.6},,,\nheld_out_rel_rmse,{held:.6},,,");
     std::fs::write(args.out.join("table1.csv"), csv)?;
     std::fs::write(args.out.join("table1.md"), &md)?;
-    write_json(
-        &args.out.join("manifest.json"),
-        &json!({
-            "seed": args.seed, "res": args.res, "iterations": args.iterations, "estimator": estimator.name(),
-            "lanes": args.lanes, "weight_directions": args.weight_directions, "weight_mode": args.weight_mode,
-            "lr_latent": args.lr_latent, "lr_weights": args.lr_weights, "photons": args.photons, "spp": args.spp, "coarse_fraction": args.coarse_fraction,
-            "extra_views": args.extra_views, "sparsity": args.sparsity, "target_photons": scene.render.photons, "target_spp": scene.render.spp, "hull_voxels": hull_voxels,
-            "decoder": r.model.decoder.describe(), "decoder_parameters": r.model.decoder.param_count(),
-            "git": git_revision(), "wall_s": started.elapsed().as_secs_f64(), "threads": rayon::current_num_threads(),
-        }),
-    )?;
+    let bars: Vec<Table1Bars> = rows
+        .iter()
+        .zip(TABLE1)
+        .map(|(s, p)| Table1Bars {
+            name: p.name.into(),
+            mean: s.mean,
+            max: s.max,
+            paper_mean: p.mean,
+            paper_max: p.max,
+        })
+        .collect();
+    let title = format!("Table 1: ours ({}^3, {hull_voxels} hull voxels) and the paper's (128^3)", args.res);
+    table1_chart(&bars, &title, &args.out.join("table1.svg"))?;
+    let manifest = Manifest {
+        settings: &args,
+        target_photons: scene.render.photons,
+        target_spp: scene.render.spp,
+        hull_voxels,
+        decoder: r.model.decoder.describe(),
+        decoder_parameters: r.model.decoder.param_count(),
+        git: git_revision(),
+        wall_s: started.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+    };
+    let manifest = serde_json::to_value(&manifest).map_err(|e| Error(format!("manifest: {e}")))?;
+    write_json(&args.out.join("manifest.json"), &manifest)?;
     print!("{md}");
     Ok(())
 }

@@ -22,12 +22,32 @@ fn experiment_table1_smoke_run_writes_everything() {
         "manifest.json",
         "table1.csv",
         "table1.md",
+        "table1.svg",
         "fig5_loss.svg",
         "fig6_camera2.png",
+        "fig6_camera2.svg",
         "fig7_scatter.svg",
         "fig8_held_out.png",
+        "fig8_held_out.svg",
     ] {
         assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let svg = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+    let (fig6, fig8, table1) = (svg("fig6_camera2.svg"), svg("fig8_held_out.svg"), svg("table1.svg"));
+    // Fig. 6: iterations 0 and 2 of the smoke run, then the target, each an embedded image with its label.
+    assert_eq!(fig6.matches("<image").count(), 3, "{fig6}");
+    for label in ["iteration 0", "iteration 2", "ground truth"] {
+        assert!(fig6.contains(label), "fig6 lacks {label:?}");
+    }
+    // Fig. 8: three panels and the colour bar, titled.
+    assert_eq!(fig8.matches("<image").count(), 4);
+    assert!(fig8.contains("signed error") && fig8.contains("estimate"));
+    for label in ["before training", "after training", "ground truth", "ours", "paper"] {
+        assert!(table1.contains(label), "table1.svg lacks {label:?}");
+    }
+    let manifest: serde_json::Value = serde_json::from_str(&svg("manifest.json")).unwrap();
+    for key in ["seed", "estimator", "weight_mode", "target_photons", "hull_voxels", "git", "wall_s", "threads"] {
+        assert!(manifest.get(key).is_some(), "manifest lacks {key}");
     }
     let log = std::fs::read_to_string(dir.join("log.csv")).unwrap();
     assert_eq!(log.lines().count(), 4, "header + 3 iterations");
@@ -92,4 +112,28 @@ fn stability_study_passes_every_case_at_smoke_size() {
     for r in &rows {
         assert_eq!(&r[column("passed")], "true", "{} failed: {}", &r[column("case")], &r[column("note")]);
     }
+}
+
+#[test]
+fn fit_writes_its_log_arrays_and_figures() {
+    // A 16^3 paper scene, its images, then `fit` with the last camera held out.
+    let dir = std::env::temp_dir().join(format!("dualphoton-fit-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = |p: &str| dir.join(p).to_str().unwrap().to_string();
+    let (scene, images, fit) = (d("scene"), d("images"), d("fit"));
+    let json = format!("{scene}/scene.json");
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_dualphoton")).args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    run(&["scene", "--res", "16", "--out", &scene]);
+    run(&["render", "--scene", &json, "--out", &images, "--photons", "5000"]);
+    run(&["fit", "--scene", &json, "--images", &images, "--out", &fit, "--held-out", "1", "--iterations", "2"]);
+    let files =
+        ["log.csv", "density_estimated.npy", "hull.npy", "fig5_loss.svg", "fig6_camera2.svg", "fig8_held_out.svg"];
+    for f in files {
+        assert!(dir.join("fit").join(f).exists(), "{f} missing");
+    }
+    let log = std::fs::read_to_string(dir.join("fit/log.csv")).unwrap();
+    assert_eq!(log.lines().count(), 3, "header + 2 iterations: {log}");
 }

@@ -8,8 +8,10 @@ use dualphoton::grad::loss::mse;
 use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES};
 use dualphoton::image::Image;
 use dualphoton::io::{npy, png};
-use dualphoton::recon::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
-use dualphoton::recon::train::{LogRow, TrainSettings};
+use dualphoton::recon::outputs::Outputs;
+use dualphoton::recon::problem::Problem;
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::train::TrainSettings;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::render_photon;
@@ -118,7 +120,9 @@ enum Command {
     },
     /// Reconstruct a density from images: visual hull, 64-d latent + small
     /// decoder, Adam on the image MSE. Writes density_estimated.npy,
-    /// density_initial.npy, hull.npy, log.csv, fig5_loss.svg into OUT.
+    /// density_initial.npy, hull.npy, log.csv, fig5_loss.svg into OUT, and
+    /// camera 2 during training (fig6_camera2.png/.svg) and the first
+    /// held-out camera (fig8_held_out.png/.svg) where those cameras exist.
     Fit {
         /// Scene file: cameras, lights, medium; its density only fixes the grid (shape and box).
         #[arg(long)]
@@ -239,32 +243,17 @@ fn run(command: Command) -> Result<()> {
                 )));
             }
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
-            std::fs::create_dir_all(&out).map_err(|e| Error(format!("--out: {e}")))?;
-            let settings = ReconstructSettings {
-                train: TrainSettings {
-                    iterations,
-                    estimator: estimator.parse()?,
-                    photons,
-                    seed,
-                    ..TrainSettings::default()
-                },
-                final_photons: scene.render.photons,
-                final_spp: scene.render.spp,
-                init_seed: seed,
-            };
-            let start = std::time::Instant::now();
-            let mut progress = |row: &LogRow| {
-                let done = row.iteration + 1;
-                let t = start.elapsed().as_secs_f64();
-                eprint!(
-                    "\riteration {done}/{iterations}  loss {:.4e}  {t:.0} s, ETA {:.0} s   ",
-                    row.train_loss,
-                    t / done as f64 * (iterations - done) as f64
-                );
-            };
-            let r = reconstruct(&scene, targets, held, None, &settings, &out, &mut progress)?;
+            let train =
+                TrainSettings { iterations, estimator: estimator.parse()?, photons, seed, ..TrainSettings::default() };
+            let settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
+            let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
+            let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;
+            let r = reconstruct(&problem, &settings, &mut |p| {
+                outputs.log(p.row);
+                eprint!("\r{p}   ");
+            })?;
             eprintln!();
-            write_outputs(&r, &scene, targets, held, None, &out)?;
+            outputs.finish(&r, &problem)?;
             eprintln!(
                 "fit: {} hull voxels, final loss {:.4e} -> {}",
                 r.model.mask.iter().filter(|&&m| m).count(),

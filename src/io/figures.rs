@@ -1,10 +1,9 @@
-//! The paper's figures from saved data: loss curves (Fig. 5), image strips
-//! (Fig. 6, Fig. 8) and the density scatter (Fig. 7). Plots are SVG
-//! (plotters), image strips PNG.
+//! The paper's plots from saved data: loss curves (Fig. 5), the density
+//! scatter (Fig. 7) and Table 1 as bars. All SVG (plotters); the figures
+//! made of images (Figs. 6 and 8) are in [`super::panels`].
 
-use super::plot::{line_chart, Axes, Series};
+use super::plot::{grouped_bars, line_chart, Axes, BarGroup, BarPanel, Series};
 use crate::error::{Error, Result};
-use crate::image::Image;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -32,47 +31,6 @@ pub fn loss_curves(log_csv: &Path, out: &Path) -> Result<()> {
             Series { name: "held-out camera 4".into(), points: held, markers: false },
         ],
     )
-}
-
-/// Images side by side (with a 2-pixel gap), all under one white point, as grey PNG.
-pub fn image_strip(images: &[&Image], white: f64, out: &Path) -> Result<()> {
-    let gap = 2;
-    let h = images.iter().map(|i| i.height).max().unwrap_or(1);
-    let w: usize = images.iter().map(|i| i.width).sum::<usize>() + gap * images.len().saturating_sub(1);
-    let mut canvas = image::GrayImage::from_pixel(w as u32, h as u32, image::Luma([255]));
-    let mut x0 = 0;
-    for im in images {
-        let grey = super::png::tone_map(&im.data, white);
-        for y in 0..im.height {
-            for x in 0..im.width {
-                canvas.put_pixel((x0 + x) as u32, y as u32, image::Luma([grey[y * im.width + x]]));
-            }
-        }
-        x0 += im.width + gap;
-    }
-    canvas.save(out).map_err(|e| Error(format!("cannot write {}: {e}", out.display())))
-}
-
-/// Fig. 8: ground truth | estimate (shared white point, grey) | signed error
-/// (blue negative, red positive, full colour at `white / 4`), as one RGB PNG.
-pub fn held_out_panel(truth: &Image, estimate: &Image, out: &Path) -> Result<()> {
-    let white = crate::image::auto_white(&truth.data);
-    let (w, h, gap) = (truth.width, truth.height, 2);
-    let mut canvas = image::RgbImage::from_pixel((3 * w + 2 * gap) as u32, h as u32, image::Rgb([255, 255, 255]));
-    let gt = super::png::tone_map(&truth.data, white);
-    let est = super::png::tone_map(&estimate.data, white);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            canvas.put_pixel(x as u32, y as u32, image::Rgb([gt[i]; 3]));
-            canvas.put_pixel((w + gap + x) as u32, y as u32, image::Rgb([est[i]; 3]));
-            let e = ((estimate.data[i] - truth.data[i]) / (0.25 * white)).clamp(-1.0, 1.0);
-            let fade = (255.0 * (1.0 - e.abs())) as u8;
-            let colour = if e >= 0.0 { [255, fade, fade] } else { [fade, fade, 255] };
-            canvas.put_pixel((2 * (w + gap) + x) as u32, y as u32, image::Rgb(colour));
-        }
-    }
-    canvas.save(out).map_err(|e| Error(format!("cannot write {}: {e}", out.display())))
 }
 
 /// Fig. 7: ground-truth against estimated density over the hull voxels,
@@ -110,4 +68,31 @@ pub fn density_scatter(truth: &[f64], before: &[f64], after: &[f64], mask: &[boo
         .legend(move |(x, y)| Circle::new((x + 10, y), 4, after_style));
     chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))
+}
+
+/// One row of Table 1 as the bar chart shows it: mean and max density over
+/// the hull voxels, ours and the paper's.
+pub struct Table1Bars {
+    /// Which density (before training, after training, ground truth).
+    pub name: String,
+    /// Our mean density.
+    pub mean: f64,
+    /// Our max density.
+    pub max: f64,
+    /// The paper's mean density.
+    pub paper_mean: f64,
+    /// The paper's max density.
+    pub paper_max: f64,
+}
+
+/// Table 1 as grouped bars, ours beside the paper's: mean density in one
+/// panel, max density in another (they differ by two orders of magnitude).
+pub fn table1_chart(rows: &[Table1Bars], title: &str, out: &Path) -> Result<()> {
+    let panel = |name: &str, pick: &dyn Fn(&Table1Bars) -> [f64; 2]| BarPanel {
+        title: format!("{name} density over the hull voxels"),
+        y: format!("{name} density"),
+        groups: rows.iter().map(|r| BarGroup { label: r.name.clone(), values: pick(r).to_vec() }).collect(),
+    };
+    let panels = [panel("mean", &|r| [r.mean, r.paper_mean]), panel("max", &|r| [r.max, r.paper_max])];
+    grouped_bars(out, title, &["ours", "paper"], &panels)
 }

@@ -1,8 +1,11 @@
-//! Files: `.npy` arrays, PNG previews, SVG plots.
+//! Files: `.npy` arrays, PNG previews, SVG plots and figures, CSV rows,
+//! manifests.
 
 pub mod figures;
 pub mod manifest;
 pub mod npy;
+pub mod panels;
 pub mod plot;
 pub mod png;
 pub mod rows;
+pub mod svg;

@@ -1,12 +1,16 @@
 //! Reconstruction: from images to a density. The problem (scene, target
-//! images, the paper's setup), the visual hull, the resolution levels of
-//! coarse-to-fine training, the gradients of the loss with respect to the
-//! model's parameters, Adam, the training loop and a whole reconstruction.
+//! images, the paper's setup and numbers), the visual hull, the resolution
+//! levels of coarse-to-fine training, the gradients of the loss with respect
+//! to the model's parameters, Adam, the training loop, its progress and ETA,
+//! a whole reconstruction and the files it is written to.
 
 pub mod adam;
 pub mod hull;
 pub mod level;
+pub mod outputs;
+pub mod paper;
 pub mod param_grad;
 pub mod problem;
+pub mod progress;
 pub mod reconstruct;
 pub mod train;

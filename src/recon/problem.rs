@@ -2,6 +2,7 @@
 //! target images and, where known, the true density; and the paper's own
 //! problem, the built-in plume seen by the paper's rig.
 
+use super::paper;
 use crate::data::plume::plume;
 use crate::image::Image;
 use crate::render::render_photon;
@@ -23,8 +24,8 @@ pub struct Problem<'a> {
 /// The main job's problem: the built-in plume (ground truth), the paper
 /// rig around it (plus `extra_views` training cameras,
 /// [`rig::extra_cameras`], placed before the held-out one), and the images
-/// of all its cameras rendered with `photons` and 8 samples per pixel (more
-/// than a training update uses).
+/// of all its cameras rendered with `photons` and [`paper::TARGET_SPP`]
+/// samples per pixel (more than a training update uses; see [`target_render`]).
 pub struct PaperProblem {
     /// Ground-truth density.
     pub truth: Grid<f64>,
@@ -41,9 +42,16 @@ pub fn paper_problem(res: usize, seed: u64, photons: u64, extra_views: usize) ->
     let at = rig::HELD_OUT_CAMERA;
     scene.cameras.splice(at..at, rig::extra_cameras(extra_views, res));
     let mut target = scene.clone();
-    target.render.photons = photons;
-    target.render.spp = 8;
-    target.render.seed = seed.wrapping_add(4242);
+    target_render(&mut target, seed, photons);
     let images = render_photon(&target).images;
     PaperProblem { truth, scene, images }
+}
+
+/// Sets `scene`'s render settings to those the target images of
+/// [`paper_problem`] (from `seed`, with `photons`) are rendered with, so that
+/// a saved scene renders them again.
+pub fn target_render(scene: &mut Scene, seed: u64, photons: u64) {
+    scene.render.photons = photons;
+    scene.render.spp = paper::TARGET_SPP;
+    scene.render.seed = paper::target_seed(seed);
 }

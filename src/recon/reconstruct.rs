@@ -1,23 +1,22 @@
 //! A whole reconstruction: visual hull from the training images, a latent
-//! and decoder initialised inside it, training, and everything a reader
-//! needs to check the result, written into one directory.
+//! and decoder initialised inside it, training (reporting progress and an
+//! ETA), snapshots of one camera along the way and final renders of the
+//! estimate. It computes and returns; [`super::outputs`] writes the files.
 
+use super::level::Level;
+use super::paper;
 use super::problem::Problem;
+use super::progress::{coarse_updates, fine_over_coarse, Eta, Progress};
 use super::train::{train, LogRow, TrainSettings};
 use crate::error::{Error, Result};
 use crate::image::Image;
-use crate::io::{figures, npy};
 use crate::model::Decoder;
 use crate::model::Model;
 use crate::recon::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
 use crate::render::render_photon;
 use crate::scene::Scene;
 use crate::volume::Grid;
-use std::io::Write as _;
-use std::path::Path;
-
-/// Iterations whose camera-2 image goes into Fig. 6 (the last one is added).
-pub const FIG6_ITERATIONS: [usize; 5] = [0, 10, 50, 100, 200];
+use std::time::Instant;
 
 /// What a reconstruction produced.
 pub struct Reconstruction {
@@ -31,7 +30,10 @@ pub struct Reconstruction {
     pub log: Vec<LogRow>,
     /// Images of every camera rendered from the estimate (final quality).
     pub final_images: Vec<Image>,
-    /// Camera-2 images at [`FIG6_ITERATIONS`] (iteration, image).
+    /// The camera of the snapshots.
+    pub snapshot_camera: usize,
+    /// Its images at the settings' snapshot iterations and the last one
+    /// (iteration, image at full size; coarse updates' images enlarged).
     pub snapshots: Vec<(usize, Image)>,
 }
 
@@ -44,8 +46,32 @@ pub struct ReconstructSettings {
     pub final_photons: u64,
     /// Samples per pixel of the final renders.
     pub final_spp: u32,
+    /// Seed of the final renders.
+    pub final_seed: u64,
     /// Seed of the model's initial values.
     pub init_seed: u64,
+    /// Camera whose image is kept at the snapshot iterations (none if out of range).
+    pub snapshot_camera: usize,
+    /// Iterations whose image of the snapshot camera is kept (the last one is added).
+    pub snapshot_iterations: Vec<usize>,
+}
+
+impl ReconstructSettings {
+    /// The paper's choices around `train`: the model initialised from the
+    /// training seed, snapshots for Fig. 6 ([`paper::FIG6_CAMERA`] at
+    /// [`paper::FIG6_ITERATIONS`]) and final renders with `final_photons`,
+    /// `final_spp` and [`paper::final_seed`].
+    pub fn paper(train: TrainSettings, final_photons: u64, final_spp: u32) -> ReconstructSettings {
+        ReconstructSettings {
+            final_photons,
+            final_spp,
+            final_seed: paper::final_seed(train.seed),
+            init_seed: train.seed,
+            snapshot_camera: paper::FIG6_CAMERA,
+            snapshot_iterations: paper::FIG6_ITERATIONS.to_vec(),
+            train,
+        }
+    }
 }
 
 /// The model before training: the visual hull of the training cameras
@@ -68,48 +94,36 @@ pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result
     Ok(Model { decoder, z, w, mask })
 }
 
-/// Reconstructs the density of `scene` (cameras `0..targets.len()` train,
-/// the rest are held out) from `targets` (+ `held_out` images), writing the
-/// log as it goes to `out/log.csv`.
+/// Reconstructs the density of `problem.scene` (cameras
+/// `0..problem.targets.len()` train, the rest are held out) from its target
+/// images; `progress` sees every log row with the time so far and the ETA.
+/// Writes no file: [`super::outputs`] does.
 pub fn reconstruct(
-    scene: &Scene,
-    targets: &[Image],
-    held_out: &[Image],
-    truth: Option<&Grid<f64>>,
+    problem: &Problem,
     settings: &ReconstructSettings,
-    out: &Path,
-    progress: &mut dyn FnMut(&LogRow),
+    progress: &mut dyn FnMut(&Progress),
 ) -> Result<Reconstruction> {
+    let start = Instant::now();
+    let (scene, targets) = (problem.scene, problem.targets);
     let mut model = initial_model(scene, targets, settings.init_seed)?;
     let initial = model.density(&scene.density);
 
+    let train_settings = &settings.train;
+    let total = train_settings.iterations;
+    let mut eta = eta_for(problem, &model, train_settings);
     let mut log = vec![];
     let mut snapshots = vec![];
-    let mut csv =
-        std::fs::File::create(out.join("log.csv")).map_err(|e| Error(format!("cannot write log.csv: {e}")))?;
-    writeln!(
-        csv,
-        "iteration,train_loss,held_out_loss,held_out_rel_rmse,density_rel_l1,mean_density,max_density,wall_s"
-    )?;
-    let last = settings.train.iterations.saturating_sub(1);
-    let problem = Problem { scene, targets, held_out, truth };
-    train(&problem, &mut model, &settings.train, &mut |row, _, images| {
-        let _ = writeln!(
-            csv,
-            "{},{:.9e},{:.9e},{:.6},{:.6},{:.6e},{:.6e},{:.3}",
-            row.iteration,
-            row.train_loss,
-            row.held_out_loss,
-            row.held_out_rel_rmse,
-            row.density_rel_l1,
-            row.mean_density,
-            row.max_density,
-            row.wall_s
-        );
-        if (FIG6_ITERATIONS.contains(&row.iteration) || row.iteration == last) && images.len() > 2 {
-            snapshots.push((row.iteration, upscale(&images[2], targets[2].width)));
+    let camera = settings.snapshot_camera;
+    let truth_width = targets.iter().chain(problem.held_out).nth(camera).map(|im| im.width);
+    let last = total.saturating_sub(1);
+    train(problem, &mut model, train_settings, &mut |row, _, images| {
+        let coarse = images.first().is_some_and(|im| im.width < scene.cameras[0].width);
+        let eta_s = eta.observe(row.iteration, row.wall_s, coarse);
+        let wanted = settings.snapshot_iterations.contains(&row.iteration) || row.iteration == last;
+        if let (true, Some(image), Some(width)) = (wanted, images.get(camera), truth_width) {
+            snapshots.push((row.iteration, upscale(image, width)));
         }
-        progress(row);
+        progress(&Progress { row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
         log.push(row.clone());
     })?;
     let estimated = model.density(&scene.density);
@@ -117,45 +131,19 @@ pub fn reconstruct(
     final_scene.density = estimated.clone();
     final_scene.render.photons = settings.final_photons;
     final_scene.render.spp = settings.final_spp;
-    final_scene.render.seed = settings.train.seed.wrapping_add(777);
+    final_scene.render.seed = settings.final_seed;
     let final_images = render_photon(&final_scene).images;
-    Ok(Reconstruction { model, initial, estimated, log, final_images, snapshots })
+    Ok(Reconstruction { model, initial, estimated, log, final_images, snapshot_camera: camera, snapshots })
 }
 
-/// Writes the arrays and figures of a reconstruction into `out`.
-pub fn write_outputs(
-    r: &Reconstruction,
-    scene: &Scene,
-    targets: &[Image],
-    held_out: &[Image],
-    truth: Option<&Grid<f64>>,
-    out: &Path,
-) -> Result<()> {
-    let shape = &scene.density.shape;
-    npy::write_f32(&out.join("density_initial.npy"), shape, &r.initial.data)?;
-    npy::write_f32(&out.join("density_estimated.npy"), shape, &r.estimated.data)?;
-    npy::write_u8(&out.join("hull.npy"), shape, &r.model.mask.iter().map(|&m| m as u8).collect::<Vec<_>>())?;
-    if let Some(t) = truth {
-        npy::write_f32(&out.join("density_gt.npy"), shape, &t.data)?;
-        figures::density_scatter(
-            &t.data,
-            &r.initial.data,
-            &r.estimated.data,
-            &r.model.mask,
-            &out.join("fig7_scatter.svg"),
-        )?;
-    }
-    figures::loss_curves(&out.join("log.csv"), &out.join("fig5_loss.svg"))?;
-    if targets.len() > 2 {
-        let white = crate::image::auto_white(&targets[2].data);
-        let mut strip: Vec<&Image> = r.snapshots.iter().map(|(_, i)| i).collect();
-        strip.push(&targets[2]);
-        figures::image_strip(&strip, white, &out.join("fig6_camera2.png"))?;
-    }
-    if let Some(h) = held_out.first() {
-        figures::held_out_panel(h, &r.final_images[targets.len()], &out.join("fig8_held_out.png"))?;
-    }
-    Ok(())
+/// The ETA of `settings` on `problem`; times one primal render per level
+/// only when training will switch from half to full resolution.
+fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings) -> Eta {
+    let has_half = settings.coarse_fraction > 0.0 && Level::half(problem, &model.mask).is_some();
+    let coarse = coarse_updates(settings, has_half);
+    let switches = settings.time_budget.is_none() && coarse > 0 && coarse < settings.iterations;
+    let ratio = if switches { fine_over_coarse(problem, model, settings).unwrap_or(1.0) } else { 1.0 };
+    Eta::new(settings.iterations, coarse, ratio, settings.time_budget)
 }
 
 /// `im` enlarged by pixel replication to `width` (a coarse update's image next to full-size ones).
