@@ -1,4 +1,4 @@
-//! Cost of one gradient (issue 3, item 7): time and peak memory of each
+//! Cost of one gradient: time and peak memory of each
 //! estimator and lane count K, as ratios to one primal render, on the paper
 //! rig at 64^3 (4 training cameras, 3 lights, orders 1-3, 300,000 photons).
 //! Writes `results/bench_grad/{bench.csv, summary.md, manifest.json}`.

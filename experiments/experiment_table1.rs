@@ -1,4 +1,4 @@
-//! The main job (issue 4): reconstruct the built-in plume from the paper
+//! The main job: reconstruct the built-in plume from the paper
 //! rig's four training cameras and regenerate Table 1 and Figs. 5-8 in
 //! `results/table1/` (`--out` to change). `--smoke` runs a tiny version.
 

@@ -1,4 +1,4 @@
-//! Gradient-variance study (issue 5, item 1): every estimator of the
+//! Gradient-variance study: every estimator of the
 //! parameter gradient (64-d latent and decoder weights), at the initial
 //! parameters and midway through the default training run, over many
 //! independent seeds: mean, total variance, bias and cosine against a

@@ -1,6 +1,6 @@
 //! The crate's one error type: a message that names the bad field or file.
 //!
-//! Errors are values (STYLE.md habit 8): every check of user input returns
+//! Errors are values: every check of user input returns
 //! `Err(Error)` with a one-line message, the CLI prints it and exits non-zero.
 
 use std::fmt;

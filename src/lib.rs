@@ -7,7 +7,7 @@
 //! pinhole cameras) is rendered by [`render`] into radiance images: single
 //! scattering by ray marching, higher orders by photon mapping; an unbiased
 //! path tracer is the reference. Conventions (right-handed, y up, voxel
-//! centres, units) are those of `DESIGN.md` §1 and are documented on the
+//! centres, units) are those of `docs/DESIGN.md` §1 and are documented on the
 //! types that carry them.
 
 #![warn(missing_docs)]

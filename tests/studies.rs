@@ -1,4 +1,4 @@
-//! The study binaries of issue 5 end to end at a tiny size (`--smoke`):
+//! The study binaries end to end at a tiny size (`--smoke`):
 //! they run, write every promised file, and their numbers make sense.
 
 use std::path::{Path, PathBuf};

@@ -3,7 +3,7 @@
 //! Everything that a density can change (extinction, transmittance, path
 //! weights, pixel values) is computed in a type `R: Real`; everything that is
 //! a sampling decision (positions, directions, distances) stays `f64`
-//! (DESIGN.md §3, detached sampling). `f64` implements `Real` here; the dual
+//! (docs/DESIGN.md §3, detached sampling). `f64` implements `Real` here; the dual
 //! and reverse-mode types implement it in their own modules.
 
 pub mod dual;

@@ -44,7 +44,7 @@ enum Preset {
 enum Command {
     /// Render every camera of a scene to DIR/cam0.npy, DIR/cam0.png, DIR/cam1.npy, ...
     Render {
-        /// Scene file (JSON, DESIGN.md §1).
+        /// Scene file (JSON, docs/DESIGN.md §1).
         #[arg(long)]
         scene: PathBuf,
         /// Output directory (created if missing).
@@ -81,7 +81,7 @@ enum Command {
     /// Gradient of the MSE between the rendered images and target images with
     /// respect to every density voxel, written as float32 (Z, Y, X).
     Grad {
-        /// Scene file (JSON, DESIGN.md §1).
+        /// Scene file (JSON, docs/DESIGN.md §1).
         #[arg(long)]
         scene: PathBuf,
         /// Directory with one target image per camera: cam0.npy, cam1.npy, ... (as `render` writes them).

@@ -1,6 +1,6 @@
 //! The built-in ground-truth smoke: a plume rising in the box
 //! `[-0.5, 0.5]^3` (y up), deterministic from a seed, standing in for a
-//! ScalarFlow frame (DESIGN.md §4).
+//! ScalarFlow frame (docs/DESIGN.md §4).
 //!
 //! How it is made, in three stages:
 //! 1. **Simulation** (submodule `fluid`): buoyant smoke is released from a small
@@ -43,7 +43,7 @@ use rayon::prelude::*;
 /// Largest density of the plume (the paper's ground-truth maximum, 1.3585).
 pub const PLUME_MAX: f64 = 1.36;
 
-/// Densities below this are set to exactly 0 (DESIGN.md §4).
+/// Densities below this are set to exactly 0 (docs/DESIGN.md §4).
 pub const CUTOFF: f64 = 0.01;
 
 /// Mean density over occupied voxels that the tone aims for (paper: 0.0432).
@@ -123,7 +123,7 @@ fn sample(smoke: &Smoke, res: usize) -> Grid<f64> {
     grid.data.par_chunks_mut(res).enumerate().for_each(|(row, out)| {
         let (k, j) = (row / res, row % res);
         for (i, v) in out.iter_mut().enumerate() {
-            // The centre of voxel (k, j, i), DESIGN.md §1.
+            // The centre of voxel (k, j, i), docs/DESIGN.md §1.
             *v = smoke.at(&(lo + Vec3::new(i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5) * h));
         }
     });

@@ -1,5 +1,5 @@
 //! Loads a real ScalarFlow density frame (Eckert et al. 2019) as ground
-//! truth, in place of the built-in plume (DESIGN.md §4).
+//! truth, in place of the built-in plume (docs/DESIGN.md §4).
 //!
 //! A ScalarFlow frame is an `.npz` archive (`np.savez` or
 //! `np.savez_compressed`: a zip, members stored or deflated) holding one
@@ -12,7 +12,7 @@
 //! aspect ratio: the longest axis spans `[-0.5, 0.5]`, the others are
 //! centred (a 100 x 178 x 100 frame fills `|x|, |z| <= 0.281`). The frame is
 //! resampled trilinearly at the voxel centres of a `(res, res, res)` grid,
-//! both grids cell-centred as in DESIGN.md §1 (no smoothing first, so below
+//! both grids cell-centred as in docs/DESIGN.md §1 (no smoothing first, so below
 //! the frame's resolution thin wisps may alias). Densities are then scaled
 //! so that the largest voxel is exactly [`PLUME_MAX`] (1.36, the scale of
 //! the built-in plume and of the paper's ground truth; the frame's own

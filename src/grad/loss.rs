@@ -1,4 +1,4 @@
-//! The image loss (DESIGN.md §3): `L = (1/N) Σ_cameras Σ_pixels (Î - I)^2`,
+//! The image loss (docs/DESIGN.md §3): `L = (1/N) Σ_cameras Σ_pixels (Î - I)^2`,
 //! N the total number of pixels of all cameras.
 
 use crate::ad::Real;

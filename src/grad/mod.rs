@@ -1,5 +1,5 @@
 //! Gradients of the image loss with respect to the density voxels, from the
-//! frozen estimator (DESIGN.md §3): forward mode with dual numbers, reverse
+//! frozen estimator (docs/DESIGN.md §3): forward mode with dual numbers, reverse
 //! mode with the project's tape, and the estimators built on them.
 //!
 //! | name       | what                                                     | cost at 64^3 (x one primal render) |

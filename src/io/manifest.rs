@@ -1,5 +1,5 @@
 //! Run manifests: what produced a result (settings, seed, git revision,
-//! wall time, peak memory), written beside it as JSON (STYLE.md habit 6).
+//! wall time, peak memory), written beside it as JSON.
 
 use crate::error::{Error, Result};
 use serde_json::Value;

@@ -1,6 +1,6 @@
 //! Small geometry: the vector type, orthonormal frames and warps of explicit
 //! uniform numbers onto directions. All plain `f64`: geometry is never
-//! differentiated (DESIGN.md §3).
+//! differentiated (docs/DESIGN.md §3).
 
 use nalgebra::Vector3;
 use std::f64::consts::PI;

@@ -1,4 +1,4 @@
-//! The training loop (issue 4): a 64-d latent and a small decoder produce
+//! The training loop: a 64-d latent and a small decoder produce
 //! the density inside the visual hull; Adam minimises the image MSE of the
 //! training cameras. Each update re-traces the photons with a fresh seed
 //! (detached sampling at the current density), so the noise averages out

@@ -1,5 +1,5 @@
 //! The camera-ray integral `L = ∫ T(0,t) sigma_s(x_t) L_s(x_t, -w) dt`
-//! (DESIGN.md §2) by ray marching: per step, single scattering towards every
+//! (docs/DESIGN.md §2) by ray marching: per step, single scattering towards every
 //! light with a marched shadow ray, plus the photon estimate of the higher
 //! orders read from a grid. Generic over `R: Real`: the density carries
 //! derivatives, the step placement does not.
@@ -18,7 +18,7 @@ pub struct CameraRays<'a, R: Real> {
     /// The density (weights and derivatives).
     pub density: &'a Grid<R>,
     /// Frozen mode: the density the sampling decisions use. `None`: the
-    /// primal of `density` (detached sampling, DESIGN.md §3).
+    /// primal of `density` (detached sampling, docs/DESIGN.md §3).
     pub sampling: Option<&'a Grid<f64>>,
     /// Optical properties.
     pub medium: &'a Medium,

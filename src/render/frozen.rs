@@ -1,5 +1,5 @@
 //! The photon-mapping estimator with every sampling decision made once and
-//! kept ("frozen", DESIGN.md §3): marching steps, photon paths and their
+//! kept ("frozen", docs/DESIGN.md §3): marching steps, photon paths and their
 //! kernel weights, pixel jitter. What is left is a smooth function of the
 //! density, evaluated in any [`Real`] type: `f64` for the image, dual
 //! numbers for directional derivatives, the tape for reverse mode. The

@@ -26,7 +26,7 @@ pub struct Step {
 /// What marching needs: where the medium can be non-empty and the step length.
 #[derive(Clone, Debug)]
 pub struct Marcher {
-    /// Bounds of the density (of the sampling density, DESIGN.md §3).
+    /// Bounds of the density (of the sampling density, docs/DESIGN.md §3).
     pub majorant: Majorant,
     /// Box of the volume.
     pub lo: Vec3,

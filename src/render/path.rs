@@ -1,5 +1,5 @@
 //! The unbiased reference: a plain volumetric path tracer with next-event
-//! estimation to the point lights, in exactly the conventions of DESIGN.md
+//! estimation to the point lights, in exactly the conventions of docs/DESIGN.md
 //! §1-§2 (monochrome, black background, no surfaces, index-matched box,
 //! isotropic point lights, a pixel = mean radiance over its footprint).
 //!

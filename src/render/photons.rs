@@ -1,4 +1,4 @@
-//! Photon tracing (DESIGN.md §2): photons leave the point lights towards the
+//! Photon tracing (docs/DESIGN.md §2): photons leave the point lights towards the
 //! occupied part of the volume ([`emission`](super::emission)), every free
 //! flight is forced to end in a collision inside the medium (weight `1 - T`
 //! of the whole segment, so no photon is wasted on escaping), directions
@@ -87,7 +87,7 @@ impl Tracer<'_> {
 
     /// Replays path `i` of `trace(count, seed)` with its decisions unchanged
     /// and appends the powers of its stored photons, in the same order, as
-    /// functions of `density` (the frozen estimator, DESIGN.md §3). Each
+    /// functions of `density` (the frozen estimator, docs/DESIGN.md §3). Each
     /// free flight's weight gets the factor `sigma_t T / (sigma_t T)_detached`
     /// (exactly 1 in the primal), where the derivatives live.
     pub fn replay<R: Real>(

@@ -1,4 +1,4 @@
-//! Pinhole cameras (DESIGN.md §1): vertical field of view, square pixels,
+//! Pinhole cameras (docs/DESIGN.md §1): vertical field of view, square pixels,
 //! image row 0 at the top, a pixel's value the mean radiance over its footprint.
 
 use crate::math::{Ray, Vec3};

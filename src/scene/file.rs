@@ -1,4 +1,4 @@
-//! The scene file (JSON, DESIGN.md §1): parsing, validation with errors that
+//! The scene file (JSON, docs/DESIGN.md §1): parsing, validation with errors that
 //! name the field, and writing.
 
 use super::{Camera, Light, Medium, RenderSettings, Scene};

@@ -1,5 +1,5 @@
 //! Scenes: the medium, point lights, cameras and render knobs, read from and
-//! written to the JSON + `.npy` format of DESIGN.md §1, plus the paper's rig.
+//! written to the JSON + `.npy` format of docs/DESIGN.md §1, plus the paper's rig.
 
 pub mod camera;
 pub mod file;

@@ -1,4 +1,4 @@
-//! The paper's rig (DESIGN.md §4, paper Fig. 4): five cameras at azimuths
+//! The paper's rig (docs/DESIGN.md §4, paper Fig. 4): five cameras at azimuths
 //! -60..60 degrees on a circle of radius 2.5, three point lights at -45, 0,
 //! 45 degrees on a circle of radius 3, all in the y = 0 plane around the
 //! volume. Azimuth `phi` is measured from +z towards +x.

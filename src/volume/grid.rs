@@ -1,5 +1,5 @@
 //! The density grid: cell-centred samples on a box, trilinear in between
-//! (DESIGN.md §1).
+//! (docs/DESIGN.md §1).
 //!
 //! Voxel `(k, j, i)` of the `(Z, Y, X)` array has its centre at
 //! `lo + ((i+0.5)/X, (j+0.5)/Y, (k+0.5)/Z) * (hi - lo)`. Between centres the
