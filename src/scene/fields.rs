@@ -9,8 +9,7 @@ use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
 /// What to say where a number was NaN or infinite in the program that wrote the file.
-const NOT_FINITE: &str =
-    "NaN and infinity cannot be written in JSON (they come out as null or NaN): give a finite number";
+const NOT_FINITE: &str = "JSON has no NaN or infinity (writers put null or NaN there): give a finite number";
 
 /// The fields of one JSON object, at `path` in the file.
 pub(super) struct Fields<'a> {
