@@ -61,6 +61,9 @@ fn expect_error(out: &Output, field: &str) {
     assert!(stderr.starts_with("error: ") && stderr.contains(field), "error for {field} does not name it: {stderr}");
 }
 
+/// A named change to the valid scene and the field its error must name.
+type Case = (&'static str, Box<dyn Fn(&mut Value)>, &'static str);
+
 fn render_error(name: &str, scene: Value, density: Vec<f64>, shape: &[usize], field: &str) {
     let dir = temp_dir(name);
     let path = write_scene(&dir, &scene, &density, shape);
@@ -136,7 +139,7 @@ fn bad_density_values_and_shapes_are_errors() {
 
 #[test]
 fn bad_fields_are_errors() {
-    let cases: Vec<(&str, Box<dyn Fn(&mut Value)>, &str)> = vec![
+    let cases: Vec<Case> = vec![
         ("g1", Box::new(|s| s["volume"]["g"] = json!(1.0)), "volume.g"),
         ("gm1", Box::new(|s| s["volume"]["g"] = json!(-1.5)), "volume.g"),
         ("albedo", Box::new(|s| s["volume"]["albedo"] = json!(1.2)), "volume.albedo"),
@@ -169,7 +172,7 @@ fn remove(v: &mut Value, key: &str) {
 
 #[test]
 fn file_errors_name_the_field_by_its_path() {
-    let cases: Vec<(&str, Box<dyn Fn(&mut Value)>, &str)> = vec![
+    let cases: Vec<Case> = vec![
         // Wrong types.
         ("type_g", Box::new(|s| s["volume"]["g"] = json!("0.5")), "volume.g"),
         ("type_intensity", Box::new(|s| s["lights"][0]["intensity"] = json!("bright")), "lights[0].intensity"),
