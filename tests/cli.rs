@@ -61,6 +61,9 @@ fn expect_error(out: &Output, field: &str) {
     assert!(stderr.starts_with("error: ") && stderr.contains(field), "error for {field} does not name it: {stderr}");
 }
 
+/// A named change to the valid scene and the field its error must name.
+type Case = (&'static str, Box<dyn Fn(&mut Value)>, &'static str);
+
 fn render_error(name: &str, scene: Value, density: Vec<f64>, shape: &[usize], field: &str) {
     let dir = temp_dir(name);
     let path = write_scene(&dir, &scene, &density, shape);
@@ -136,7 +139,7 @@ fn bad_density_values_and_shapes_are_errors() {
 
 #[test]
 fn bad_fields_are_errors() {
-    let cases: Vec<(&str, Box<dyn Fn(&mut Value)>, &str)> = vec![
+    let cases: Vec<Case> = vec![
         ("g1", Box::new(|s| s["volume"]["g"] = json!(1.0)), "volume.g"),
         ("gm1", Box::new(|s| s["volume"]["g"] = json!(-1.5)), "volume.g"),
         ("albedo", Box::new(|s| s["volume"]["albedo"] = json!(1.2)), "volume.albedo"),
@@ -152,7 +155,7 @@ fn bad_fields_are_errors() {
         ("up", Box::new(|s| s["cameras"][0]["up"] = json!([0.0, 0.0, 1.0])), "cameras[0].up"),
         ("nocam", Box::new(|s| s["cameras"] = json!([])), "cameras"),
         ("typo", Box::new(|s| s["lights"][0]["intesity"] = json!(3.0)), "intesity"),
-        ("missing", Box::new(|s| s["volume"].as_object_mut().unwrap().remove("g").map(|_| ()).unwrap()), "`g`"),
+        ("missing", Box::new(|s| s["volume"].as_object_mut().unwrap().remove("g").map(|_| ()).unwrap()), "volume.g"),
         ("radius", Box::new(|s| s["render"]["kernel_radius"] = json!(0.0)), "render.kernel_radius"),
     ];
     for (name, mutate, field) in cases {
@@ -160,6 +163,154 @@ fn bad_fields_are_errors() {
         mutate(&mut scene);
         render_error(name, scene, blob(8), &[8, 8, 8], field);
     }
+}
+
+/// Removes `key` from the object at `v`.
+fn remove(v: &mut Value, key: &str) {
+    v.as_object_mut().unwrap().remove(key).unwrap();
+}
+
+#[test]
+fn file_errors_name_the_field_by_its_path() {
+    let cases: Vec<Case> = vec![
+        // Wrong types.
+        ("type_g", Box::new(|s| s["volume"]["g"] = json!("0.5")), "volume.g"),
+        ("type_intensity", Box::new(|s| s["lights"][0]["intensity"] = json!("bright")), "lights[0].intensity"),
+        ("type_width", Box::new(|s| s["cameras"][1]["width"] = json!(-8)), "cameras[1].width"),
+        ("type_position", Box::new(|s| s["cameras"][0]["position"] = json!([0.0, 2.5])), "cameras[0].position"),
+        ("type_order", Box::new(|s| s["volume"]["max_order"] = json!(2.5)), "volume.max_order"),
+        ("type_lights", Box::new(|s| s["lights"] = json!({"position": [0, 0, 0]})), "lights"),
+        ("type_render", Box::new(|s| s["render"] = json!(5)), "render"),
+        ("type_photons", Box::new(|s| s["render"]["photons"] = json!(-5)), "render.photons"),
+        ("type_density", Box::new(|s| s["volume"]["density"] = json!(3)), "volume.density"),
+        // Missing required fields.
+        ("missing_position", Box::new(|s| remove(&mut s["lights"][0], "position")), "lights[0].position"),
+        ("missing_fov", Box::new(|s| remove(&mut s["cameras"][1], "fov_y_deg")), "cameras[1].fov_y_deg"),
+        ("missing_lights", Box::new(|s| remove(s, "lights")), "lights"),
+        ("missing_density", Box::new(|s| remove(&mut s["volume"], "density")), "volume.density"),
+        // Unknown fields.
+        ("unknown_render", Box::new(|s| s["render"]["phtons"] = json!(10)), "render.phtons"),
+        ("unknown_camera", Box::new(|s| s["cameras"][1]["fov"] = json!(40)), "cameras[1].fov"),
+        ("unknown_top", Box::new(|s| s["light"] = json!([])), "light"),
+        // NaN and infinity written as null.
+        ("null_g", Box::new(|s| s["volume"]["g"] = Value::Null), "volume.g"),
+        ("null_intensity", Box::new(|s| s["lights"][0]["intensity"] = Value::Null), "lights[0].intensity"),
+        ("null_bbox", Box::new(|s| s["volume"]["bbox_min"] = json!([-0.5, null, -0.5])), "volume.bbox_min"),
+        ("null_radius", Box::new(|s| s["render"]["kernel_radius"] = Value::Null), "render.kernel_radius"),
+        ("null_photons", Box::new(|s| s["render"]["photons"] = Value::Null), "render.photons"),
+    ];
+    for (name, mutate, field) in cases {
+        let mut scene = valid_scene();
+        mutate(&mut scene);
+        render_error(name, scene, blob(8), &[8, 8, 8], field);
+    }
+}
+
+#[test]
+fn bare_nan_names_its_field() {
+    // Python's json.dump writes NaN and Infinity bare: not JSON, but the error should still name the field.
+    for (name, from, to, field) in [
+        ("nan_g", "\"g\": 0.5", "\"g\": NaN", "volume.g"),
+        ("inf_intensity", "\"intensity\": 50.0", "\"intensity\": -Infinity", "lights[0].intensity"),
+    ] {
+        let dir = temp_dir(name);
+        let path = write_scene(&dir, &valid_scene(), &blob(8), &[8, 8, 8]);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(from), "{text}");
+        std::fs::write(&path, text.replace(from, to)).unwrap();
+        let out =
+            dualphoton(&["render", "--scene", path.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+        expect_error(&out, field);
+        assert!(String::from_utf8_lossy(&out.stderr).contains("finite number"));
+    }
+}
+
+/// The bytes of a float64 `.npy` in the given byte and axis order, as numpy writes it.
+fn npy_f8(shape: &[usize], c_order: &[f64], fortran: bool, big_endian: bool) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(|s| s.to_string()).collect();
+    let descr = if big_endian { ">f8" } else { "<f8" };
+    let order = if fortran { "True" } else { "False" };
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': {order}, 'shape': ({}), }}", dims.join(", "));
+    header.push_str(&" ".repeat((64 - (10 + header.len() + 1) % 64) % 64));
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    let [nz, ny, nx] = [shape[0], shape[1], shape[2]];
+    let mut values = vec![];
+    if fortran {
+        // First axis fastest.
+        for i in 0..nx {
+            for j in 0..ny {
+                for k in 0..nz {
+                    values.push(c_order[(k * ny + j) * nx + i]);
+                }
+            }
+        }
+    } else {
+        values.extend_from_slice(c_order);
+    }
+    for v in values {
+        out.extend_from_slice(&if big_endian { v.to_be_bytes() } else { v.to_le_bytes() });
+    }
+    out
+}
+
+#[test]
+fn density_in_any_numpy_layout_renders_the_same() {
+    // A lopsided density (x, y and z differ), so a transposition would show.
+    let (nz, ny, nx) = (6, 7, 8);
+    let mut d = vec![0.0; nz * ny * nx];
+    for (n, v) in d.iter_mut().enumerate() {
+        let (k, j, i) = (n / (ny * nx), (n / nx) % ny, n % nx);
+        *v = 0.05 * (1 + i + 2 * j * j + 3 * k) as f64 / 20.0;
+    }
+    let mut images = vec![];
+    for (name, fortran, big) in
+        [("c_le", false, false), ("f_le", true, false), ("c_be", false, true), ("f_be", true, true)]
+    {
+        let dir = temp_dir(name);
+        let path = write_scene(&dir, &valid_scene(), &[0.0; 8], &[2, 2, 2]);
+        std::fs::write(dir.join("density.npy"), npy_f8(&[nz, ny, nx], &d, fortran, big)).unwrap();
+        let out =
+            dualphoton(&["render", "--scene", path.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        images.push(std::fs::read(dir.join("out/cam0.npy")).unwrap());
+    }
+    assert!(images.iter().all(|im| *im == images[0]), "the layout changed the image");
+    // Data that does not match the header's shape.
+    let dir = temp_dir("short_npy");
+    let path = write_scene(&dir, &valid_scene(), &[0.0; 8], &[2, 2, 2]);
+    let mut bytes = npy_f8(&[nz, ny, nx], &d, false, false);
+    bytes.truncate(bytes.len() - 8);
+    std::fs::write(dir.join("density.npy"), bytes).unwrap();
+    let out = dualphoton(&["render", "--scene", path.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+    expect_error(&out, "volume.density");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("density.npy: data is"));
+}
+
+#[test]
+fn photon_counts_beyond_memory_are_an_error_not_an_abort() {
+    let start = std::time::Instant::now();
+    for (name, photons) in [("photons_float", json!(1e15)), ("photons_int", json!(1_000_000_000_000_000u64))] {
+        let mut scene = valid_scene();
+        scene["render"]["photons"] = photons;
+        render_error(name, scene, blob(8), &[8, 8, 8], "render.photons");
+    }
+    let dir = temp_dir("photons_flag");
+    let path = write_scene(&dir, &valid_scene(), &blob(8), &[8, 8, 8]);
+    let out = dualphoton(&[
+        "render",
+        "--scene",
+        path.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+        "--photons",
+        "1000000000000000",
+    ]);
+    expect_error(&out, "render.photons");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("in memory"));
+    assert!(start.elapsed().as_secs_f64() < 10.0, "rejecting took {:?}", start.elapsed());
 }
 
 #[test]

@@ -217,6 +217,7 @@ fn run(command: Command) -> Result<()> {
             let mut scene = file::load(&scene)?;
             scene.render.seed = seed.unwrap_or(scene.render.seed);
             scene.render.photons = photons.unwrap_or(scene.render.photons);
+            file::validate(&scene)?;
             let opts = GradOptions {
                 estimator: estimator.parse()?,
                 lanes,
@@ -235,6 +236,7 @@ fn run(command: Command) -> Result<()> {
         Command::Fit { scene, images, out, held_out, estimator, iterations, photons, seed, threads } => {
             set_threads(threads)?;
             let scene = file::load(&scene)?;
+            file::check_photons(photons, scene.medium.max_order, "--photons")?;
             let all = read_targets(&images, &scene)?;
             if held_out >= scene.cameras.len() {
                 return Err(Error(format!(

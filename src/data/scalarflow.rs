@@ -1,18 +1,18 @@
 //! Loads a real ScalarFlow density frame (Eckert et al. 2019) as ground
-//! truth, in place of the built-in plume (docs/DESIGN.md §4).
+//! truth, in place of the built-in plume.
 //!
 //! A ScalarFlow frame is an `.npz` archive (`np.savez` or
 //! `np.savez_compressed`: a zip, members stored or deflated) holding one
-//! array under the key `data` (member `data.npy`): float32 or float64, C
-//! order, shape `(z, y, x, 1)` or `(z, y, x)`, y up, cubic cells, density
-//! in arbitrary units. The frames of the data set are 100 x 178 x 100
+//! array under the key `data` (member `data.npy`): float32 or float64,
+//! either byte order, C or Fortran order, shape `(z, y, x, 1)` or
+//! `(z, y, x)`, y up, cubic cells, density in arbitrary units. The frames of the data set are 100 x 178 x 100
 //! cells (x, y, z), stored as `(178, ...)` on axis 1.
 //!
 //! The frame's box is fitted into the unit cube `[-0.5, 0.5]^3` keeping its
 //! aspect ratio: the longest axis spans `[-0.5, 0.5]`, the others are
 //! centred (a 100 x 178 x 100 frame fills `|x|, |z| <= 0.281`). The frame is
 //! resampled trilinearly at the voxel centres of a `(res, res, res)` grid,
-//! both grids cell-centred as in docs/DESIGN.md §1 (no smoothing first, so below
+//! both grids cell-centred like every density grid (no smoothing first, so below
 //! the frame's resolution thin wisps may alias). Densities are then scaled
 //! so that the largest voxel is exactly [`PLUME_MAX`] (1.36, the scale of
 //! the built-in plume and of the paper's ground truth; the frame's own
@@ -75,7 +75,7 @@ fn data_member(bytes: &[u8]) -> std::result::Result<Array, String> {
 
 /// The checked frame as a grid on its box fitted into the unit cube.
 fn frame_grid(array: Array) -> std::result::Result<Grid<f64>, String> {
-    if array.dtype != "<f4" && array.dtype != "<f8" {
+    if !array.element.is_float() {
         return Err(format!("dtype {} is not float32 or float64", array.dtype));
     }
     let shape = match array.shape[..] {

@@ -1,85 +1,217 @@
-//! NumPy `.npy` files: read float32/float64/uint8/bool arrays in C order,
-//! write float32 and uint8. The format is small enough to own
+//! NumPy `.npy` files: read what `numpy.save` writes for float32, float64,
+//! uint8 and bool arrays, write float32 and uint8. The format is small
+//! enough to own
 //! (https://numpy.org/doc/stable/reference/generated/numpy.lib.format.html).
+//!
+//! Read: format versions 1.0, 2.0 and 3.0; little- and big-endian (`<f4`,
+//! `>f8`, ...); C order and Fortran order (`fortran_order: True`, what numpy
+//! writes for a transposed array), the latter rearranged into C order on
+//! load. A header whose shape does not match the data that follows, or
+//! asks for more than [`MAX_ELEMENTS`], is an error before anything is
+//! allocated for it. Write: version 1.0, little-endian, C order.
 
 use crate::bail;
 use crate::error::{Error, Result};
 use std::path::Path;
+
+/// Most elements an array read may have: 2^31, 16 GiB once widened to `f64`.
+pub const MAX_ELEMENTS: usize = 1 << 31;
+/// Longest header read (numpy's own loader refuses headers over 10 000 bytes by default).
+const MAX_HEADER: usize = 1 << 20;
+
+/// The element types read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Element {
+    /// `f4`.
+    F32,
+    /// `f8`.
+    F64,
+    /// `u1`.
+    U8,
+    /// `b1` (read as 0 or 1).
+    Bool,
+}
+
+impl Element {
+    /// True for float32 and float64.
+    pub fn is_float(self) -> bool {
+        matches!(self, Element::F32 | Element::F64)
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Element::F32 => 4,
+            Element::F64 => 8,
+            Element::U8 | Element::Bool => 1,
+        }
+    }
+}
 
 /// An array read from `.npy`: its shape and its values as `f64`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Array {
     /// Shape, outermost axis first.
     pub shape: Vec<usize>,
-    /// Values in C order.
+    /// Values in C order (last axis fastest), whatever the file's order.
     pub data: Vec<f64>,
-    /// The stored element type, as in the header (`<f4`, `<f8`, `|u1`, `|b1`).
+    /// The stored element type, as in the header (`<f4`, `>f8`, `|u1`, `|b1`).
     pub dtype: String,
+    /// The stored element type.
+    pub element: Element,
 }
 
-/// Reads a `.npy` file. `what` names the field the file belongs to, for errors.
+/// Reads a `.npy` file. `what` names the field the file belongs to: every
+/// error is `what: path: problem`.
 pub fn read(path: &Path, what: &str) -> Result<Array> {
-    let bytes = std::fs::read(path).map_err(|e| Error(format!("{what}: cannot read {}: {e}", path.display())))?;
-    parse(&bytes).map_err(|e| Error(format!("{what}: {}: {}", path.display(), e.0)))
+    let fail = |msg: String| Error(format!("{what}: {}: {msg}", path.display()));
+    let len = std::fs::metadata(path).map_err(|e| fail(format!("cannot read: {e}")))?.len();
+    // No valid file is larger: check before reading it all into memory.
+    let most = 12 + MAX_HEADER as u64 + 8 * MAX_ELEMENTS as u64;
+    if len > most {
+        return Err(fail(format!("{len} bytes is more than a .npy of at most {MAX_ELEMENTS} elements can be")));
+    }
+    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    parse(&bytes).map_err(|e| fail(e.0))
 }
 
 /// Parses the bytes of a `.npy` file.
 pub fn parse(bytes: &[u8]) -> Result<Array> {
+    let (header, body) = split(bytes)?;
+    let value = |key: &str| header_value(header, key).ok_or_else(|| Error(format!("header has no '{key}'")));
+    let dtype = value("descr")?.trim_matches(|c| c == '\'' || c == '"').to_string();
+    let (element, big_endian) = element_of(&dtype)?;
+    let fortran = match value("fortran_order")? {
+        "True" => true,
+        "False" => false,
+        other => bail!("header's 'fortran_order' is {other}, not True or False"),
+    };
+    let shape = parse_shape(value("shape")?)?;
+    let count =
+        shape.iter().try_fold(1usize, |n, &axis| n.checked_mul(axis)).filter(|&n| n <= MAX_ELEMENTS).ok_or_else(
+            || Error(format!("shape {shape:?} has more elements than the {MAX_ELEMENTS} this reader accepts")),
+        )?;
+    let need = count * element.size();
+    if body.len() != need {
+        bail!("data is {} bytes, shape {shape:?} of {dtype} needs {need}", body.len());
+    }
+    let data = decode(body, element, big_endian);
+    let data = if fortran { fortran_to_c(&data, &shape) } else { data };
+    Ok(Array { shape, data, dtype, element })
+}
+
+/// The header text and the data after it.
+fn split(bytes: &[u8]) -> Result<(&str, &[u8])> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         bail!("not a .npy file (bad magic)");
     }
     let (header_len, start) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
         2 | 3 if bytes.len() >= 12 => (u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize, 12),
-        v => bail!("unsupported .npy version {v}"),
+        2 | 3 => bail!("truncated .npy header"),
+        v => bail!("unsupported .npy format version {v}.{} (1.0, 2.0 and 3.0 are read)", bytes[7]),
     };
+    if header_len > MAX_HEADER {
+        bail!("header of {header_len} bytes is longer than the {MAX_HEADER} this reader accepts");
+    }
     let end = start + header_len;
     if bytes.len() < end {
         bail!("truncated .npy header");
     }
+    // Versions 1 and 2 are latin-1, 3 is UTF-8; the keys read are ASCII either way.
     let header = std::str::from_utf8(&bytes[start..end]).map_err(|_| Error::new("header is not text"))?;
-    let dtype = header_value(header, "descr").ok_or_else(|| Error::new("header has no 'descr'"))?;
-    let dtype = dtype.trim_matches(|c| c == '\'' || c == '"').to_string();
-    let fortran = header_value(header, "fortran_order").ok_or_else(|| Error::new("header has no 'fortran_order'"))?;
-    if fortran.trim() != "False" {
-        bail!("Fortran-order arrays are not supported (save with C order)");
-    }
-    let shape_text = header_value(header, "shape").ok_or_else(|| Error::new("header has no 'shape'"))?;
-    let shape = shape_text
-        .trim_matches(|c| c == '(' || c == ')')
+    Ok((header, &bytes[end..]))
+}
+
+/// The element type of a `descr` and whether it is big-endian.
+fn element_of(descr: &str) -> Result<(Element, bool)> {
+    let native_big = cfg!(target_endian = "big");
+    let (big, code) = match descr.as_bytes().first() {
+        Some(b'<') => (false, &descr[1..]),
+        Some(b'>') => (true, &descr[1..]),
+        Some(b'|' | b'=') => (native_big, &descr[1..]),
+        _ => (native_big, descr),
+    };
+    let element = match code {
+        "f4" => Element::F32,
+        "f8" => Element::F64,
+        "u1" => Element::U8,
+        "b1" => Element::Bool,
+        _ => bail!("dtype {descr} is not supported (float32, float64, uint8 or bool, either byte order)"),
+    };
+    Ok((element, big))
+}
+
+/// The axes of a shape tuple: `(2, 3)`, `(3,)`, `()`; Python 2's `3L` too.
+fn parse_shape(text: &str) -> Result<Vec<usize>> {
+    text.trim_matches(|c| c == '(' || c == ')')
         .split(',')
         .map(str::trim)
         .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<usize>().map_err(|_| Error(format!("bad shape {shape_text}"))))
-        .collect::<Result<Vec<_>>>()?;
-    let count: usize = shape.iter().product();
-    let body = &bytes[end..];
-    let size = match dtype.as_str() {
-        "<f4" => 4,
-        "<f8" => 8,
-        "|u1" | "<u1" | "|b1" => 1,
-        other => bail!("dtype {other} is not supported (need float32 or float64, little-endian)"),
-    };
-    if body.len() < count * size {
-        bail!("data is truncated: shape {shape:?} needs {} bytes, file has {}", count * size, body.len());
+        .map(|s| s.trim_end_matches('L').parse::<usize>().map_err(|_| Error(format!("bad shape {text}"))))
+        .collect()
+}
+
+/// The values of `body` (whole elements, already length-checked) as `f64`.
+fn decode(body: &[u8], element: Element, big: bool) -> Vec<f64> {
+    match element {
+        Element::F32 => body
+            .chunks_exact(4)
+            .map(|c| {
+                let b = c.try_into().unwrap();
+                (if big { f32::from_be_bytes(b) } else { f32::from_le_bytes(b) }) as f64
+            })
+            .collect(),
+        Element::F64 => body
+            .chunks_exact(8)
+            .map(|c| {
+                let b = c.try_into().unwrap();
+                if big {
+                    f64::from_be_bytes(b)
+                } else {
+                    f64::from_le_bytes(b)
+                }
+            })
+            .collect(),
+        Element::U8 => body.iter().map(|&b| b as f64).collect(),
+        Element::Bool => body.iter().map(|&b| f64::from(u8::from(b != 0))).collect(),
     }
-    let data = match size {
-        4 => body.chunks_exact(4).take(count).map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64).collect(),
-        8 => body.chunks_exact(8).take(count).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect(),
-        _ => body[..count].iter().map(|&b| b as f64).collect(),
-    };
-    Ok(Array { shape, data, dtype })
+}
+
+/// `data` stored in Fortran order (first axis fastest) rearranged into C
+/// order (last axis fastest): walk the C-order index like an odometer and
+/// keep the Fortran offset of the same element.
+fn fortran_to_c(data: &[f64], shape: &[usize]) -> Vec<f64> {
+    let mut stride = vec![1usize; shape.len()];
+    for a in 1..shape.len() {
+        stride[a] = stride[a - 1] * shape[a - 1];
+    }
+    let mut index = vec![0usize; shape.len()];
+    let mut offset = 0;
+    let mut out = Vec::with_capacity(data.len());
+    for _ in 0..data.len() {
+        out.push(data[offset]);
+        for a in (0..shape.len()).rev() {
+            index[a] += 1;
+            offset += stride[a];
+            if index[a] < shape[a] {
+                break;
+            }
+            offset -= stride[a] * shape[a];
+            index[a] = 0;
+        }
+    }
+    out
 }
 
 /// The text of `'key': value` in a header dict, up to the next top-level comma.
 fn header_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
-    let at = header.find(&format!("'{key}'"))? + key.len() + 2;
+    let at = header.find(&format!("'{key}'")).or_else(|| header.find(&format!("\"{key}\"")))? + key.len() + 2;
     let rest = header[at..].trim_start().strip_prefix(':')?.trim_start();
     let mut depth = 0;
     for (i, c) in rest.char_indices() {
         match c {
-            '(' => depth += 1,
-            ')' => depth -= 1,
+            '(' | '[' => depth += 1,
+            ')' | ']' => depth -= 1,
             ',' | '}' if depth == 0 => return Some(rest[..i].trim()),
             _ => {}
         }
@@ -119,31 +251,4 @@ pub fn write_u8(path: &Path, shape: &[usize], data: &[u8]) -> Result<()> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn round_trip_f32() {
-        let dir = std::env::temp_dir().join(format!("dualphoton-npy-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("a.npy");
-        write_f32(&p, &[2, 3], &[0.0, 1.0, 2.0, 3.0, 4.5, -1.0]).unwrap();
-        let a = read(&p, "test").unwrap();
-        assert_eq!(a.shape, vec![2, 3]);
-        assert_eq!(a.data, vec![0.0, 1.0, 2.0, 3.0, 4.5, -1.0]);
-        assert_eq!(a.dtype, "<f4");
-        let bytes = std::fs::read(&p).unwrap();
-        assert_eq!((10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize) % 64, 0);
-    }
-
-    #[test]
-    fn rejects_garbage_and_big_endian() {
-        assert!(parse(b"hello world, not numpy").is_err());
-        let mut v = b"\x93NUMPY\x01\x00".to_vec();
-        let h = "{'descr': '>f8', 'fortran_order': False, 'shape': (1,), }\n";
-        v.extend_from_slice(&(h.len() as u16).to_le_bytes());
-        v.extend_from_slice(h.as_bytes());
-        v.extend_from_slice(&[0u8; 8]);
-        assert!(parse(&v).unwrap_err().0.contains(">f8"));
-    }
-}
+mod tests;

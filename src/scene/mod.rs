@@ -1,9 +1,12 @@
 //! Scenes: the medium, point lights, cameras and render knobs, read from and
-//! written to the JSON + `.npy` format of docs/DESIGN.md §1, plus the paper's rig.
+//! written to a JSON file with the density in a `.npy` ([`file`]), plus the
+//! paper's rig.
 
 pub mod camera;
+mod fields;
 pub mod file;
 pub mod rig;
+pub mod validate;
 
 pub use camera::Camera;
 
@@ -32,10 +35,17 @@ pub struct Light {
     pub intensity: f64,
 }
 
+/// Most photons one render may store: 2^30. The photon map keeps every
+/// stored photon in memory, at least 72 bytes each (64 for the photon, 8
+/// for its kernel's offset, more for the kernel's weights), so 2^30 of them
+/// already need over 72 GiB; a photon stores up to `max_order - 1`.
+pub const MAX_STORED_PHOTONS: u64 = 1 << 30;
+
 /// The project's own render knobs; every one has a default.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
-    /// Photons emitted in all (split among lights by the power that reaches the volume).
+    /// Photons emitted in all (split among lights by the power that reaches
+    /// the volume); at most [`RenderSettings::max_photons`].
     pub photons: u64,
     /// Photon gathering radius (world units); default one voxel size (results/bench_render: as accurate as 1.5 or 2, and faster).
     pub kernel_radius: Option<f64>,
@@ -56,6 +66,14 @@ impl Default for RenderSettings {
 }
 
 impl RenderSettings {
+    /// The most photons a render of a medium with `max_order` may emit:
+    /// [`MAX_STORED_PHOTONS`] shared among the `max_order - 1` photons each
+    /// may store (max_order 1, which stores none, counts as 2: each emitted
+    /// photon still has an 8-byte index).
+    pub fn max_photons(max_order: u32) -> u64 {
+        MAX_STORED_PHOTONS / u64::from(max_order.max(2) - 1)
+    }
+
     /// The kernel radius to use on `density` (explicit or default).
     pub fn kernel_radius_for(&self, density: &Grid<f64>) -> f64 {
         self.kernel_radius.unwrap_or_else(|| density.voxel_size().max())
