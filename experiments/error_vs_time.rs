@@ -41,8 +41,8 @@ struct Args {
     #[arg(long, default_value_t = 200.0)]
     budget: f64,
     /// Estimators to train with.
-    #[arg(long, value_delimiter = ',', default_value = "fwd-full,fwd-rand,rev-sub,rev-full")]
-    estimators: Vec<String>,
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "fwd-full,fwd-rand,rev-sub,rev-full")]
+    estimators: Vec<Estimator>,
     /// Photon counts of the renderer sweep.
     #[arg(long, value_delimiter = ',', default_value = "30000,100000,300000,1000000")]
     photons: Vec<u64>,
@@ -90,7 +90,7 @@ fn run(mut args: Args) -> Result<()> {
     if !(args.budget > 0.0 && args.budget.is_finite()) {
         return Err(Error(format!("--budget: {} is not a positive number of seconds", args.budget)));
     }
-    let estimators: Vec<Estimator> = args.estimators.iter().map(|e| e.parse()).collect::<Result<_>>()?;
+    let estimators = args.estimators.clone();
     std::fs::create_dir_all(&args.out)?;
     let started = Instant::now();
     let mut summary = format!(

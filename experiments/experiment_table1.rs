@@ -3,13 +3,13 @@
 //! `results/table1/` (`--out` to change). `--smoke` runs a tiny version.
 
 use clap::Parser;
-use dualphoton::error::{Error, Result};
+use dualphoton::error::Result;
 use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1, rel_rmse};
-use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::recon::estimator::{Estimator, WeightDirections};
 use dualphoton::recon::problem::{paper_problem, PaperProblem};
 use dualphoton::recon::reconstruct::{reconstruct, write_outputs, ReconstructSettings};
-use dualphoton::recon::train::{TrainSettings, WeightDirections};
+use dualphoton::recon::train::TrainSettings;
 use dualphoton::scene::{file, rig};
 use serde_json::json;
 use std::fmt::Write as _;
@@ -29,8 +29,8 @@ struct Args {
     #[arg(long, default_value_t = 250)]
     iterations: usize,
     /// Gradient estimator: fwd-full (default), fwd-rand, rev-sub (the paper's approximate learning), rev-full.
-    #[arg(long, default_value = "fwd-full")]
-    estimator: String,
+    #[arg(long, value_enum, default_value = "fwd-full")]
+    estimator: Estimator,
     /// Dual lanes per forward pass (1, 2, 4, 8, 16); 16 costs about as much as 8 here (results/bench_grad).
     #[arg(long, default_value_t = 16)]
     lanes: usize,
@@ -38,8 +38,8 @@ struct Args {
     #[arg(long, default_value_t = 8)]
     weight_directions: usize,
     /// How weight directions are chosen: orthonormal, guided or coordinates.
-    #[arg(long, default_value = "guided")]
-    weight_mode: String,
+    #[arg(long, value_enum, default_value = "guided")]
+    weight_mode: WeightDirections,
     /// Adam step of the latent.
     #[arg(long, default_value_t = 0.05)]
     lr_latent: f64,
@@ -87,13 +87,7 @@ fn run(mut args: Args) -> Result<()> {
     }
     let started = Instant::now();
     std::fs::create_dir_all(&args.out)?;
-    let weight_mode = match args.weight_mode.as_str() {
-        "orthonormal" => WeightDirections::Orthonormal,
-        "coordinates" => WeightDirections::Coordinates,
-        "guided" => WeightDirections::Guided,
-        m => return Err(Error(format!("--weight-mode: {m:?} is not orthonormal, guided or coordinates"))),
-    };
-    let estimator: Estimator = args.estimator.parse()?;
+    let (estimator, weight_mode) = (args.estimator, args.weight_mode);
 
     // Ground truth and its images (more photons and samples than a training update).
     let target_photons = if args.smoke { 20_000 } else { 1_000_000 };

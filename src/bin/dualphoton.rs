@@ -88,9 +88,9 @@ enum Command {
         /// Output file (.npy).
         #[arg(long)]
         out: PathBuf,
-        /// fwd-full, fwd-rand, rev-sub or rev-full.
-        #[arg(long, default_value = "rev-full")]
-        estimator: String,
+        /// Gradient estimator.
+        #[arg(long, value_enum, default_value = "rev-full")]
+        estimator: Estimator,
         /// Seed of the render (the images differentiated are those `render --seed N` writes).
         #[arg(long)]
         seed: Option<u64>,
@@ -132,9 +132,9 @@ enum Command {
         /// Cameras held out from training (the last N of the scene).
         #[arg(long, default_value_t = 0)]
         held_out: usize,
-        /// fwd-full, fwd-rand, rev-sub or rev-full.
-        #[arg(long, default_value = "fwd-full")]
-        estimator: String,
+        /// Gradient estimator.
+        #[arg(long, value_enum, default_value = "fwd-full")]
+        estimator: Estimator,
         /// Adam updates.
         #[arg(long, default_value_t = 250)]
         iterations: usize,
@@ -213,14 +213,8 @@ fn run(command: Command) -> Result<()> {
             let mut scene = file::load(&scene)?;
             scene.render.seed = seed.unwrap_or(scene.render.seed);
             scene.render.photons = photons.unwrap_or(scene.render.photons);
-            let opts = GradOptions {
-                estimator: estimator.parse()?,
-                lanes,
-                pixels,
-                paths,
-                directions: Directions::Gaussian,
-                seed: estimator_seed,
-            };
+            let opts =
+                GradOptions { estimator, lanes, pixels, paths, directions: Directions::Gaussian, seed: estimator_seed };
             if !LANES.contains(&lanes) {
                 return Err(Error(format!("--lanes: {lanes} is not one of 1, 2, 4, 8, 16")));
             }
@@ -241,13 +235,7 @@ fn run(command: Command) -> Result<()> {
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
             std::fs::create_dir_all(&out).map_err(|e| Error(format!("--out: {e}")))?;
             let settings = ReconstructSettings {
-                train: TrainSettings {
-                    iterations,
-                    estimator: estimator.parse()?,
-                    photons,
-                    seed,
-                    ..TrainSettings::default()
-                },
+                train: TrainSettings { iterations, estimator, photons, seed, ..TrainSettings::default() },
                 final_photons: scene.render.photons,
                 final_spp: scene.render.spp,
                 init_seed: seed,

@@ -1,9 +1,11 @@
 //! Reconstruction: from images to a density. The problem (scene, target
 //! images, the paper's setup), the visual hull, the resolution levels of
 //! coarse-to-fine training, the gradients of the loss with respect to the
-//! model's parameters, Adam, the training loop and a whole reconstruction.
+//! model's parameters and the one estimator vocabulary that chooses among
+//! them, Adam, the training loop and a whole reconstruction.
 
 pub mod adam;
+pub mod estimator;
 pub mod hull;
 pub mod level;
 pub mod param_grad;
