@@ -1,4 +1,4 @@
-//! Cost of one gradient (issue 3, item 7): time and peak memory of each
+//! Cost of one gradient: time and peak memory of each
 //! estimator and lane count K, as ratios to one primal render, on the paper
 //! rig at 64^3 (4 training cameras, 3 lights, orders 1-3, 300,000 photons).
 //! Writes `results/bench_grad/{bench.csv, summary.md, manifest.json}`.
@@ -9,8 +9,10 @@
 use clap::Parser;
 use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
+use dualphoton::eval::stats::median;
 use dualphoton::grad::forward::{coordinate_gradient, random_gradient, Directions};
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
+use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{git_revision, peak_memory_mib, reset_peak_memory, write_json};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
@@ -51,8 +53,7 @@ fn measure(repeats: usize, mut f: impl FnMut()) -> (f64, f64) {
         times.push(t.elapsed().as_secs_f64());
         peak = peak.max(peak_memory_mib());
     }
-    times.sort_by(|a, b| a.total_cmp(b));
-    (times[times.len() / 2], peak)
+    (median(&times), peak)
 }
 
 fn main() -> std::process::ExitCode {
@@ -91,21 +92,21 @@ fn run(mut args: Args) -> Result<()> {
     let (s, m) = measure(args.repeats, || {
         reverse_gradient(&frozen, &targets, Subset::full());
     });
-    rows.push(("rev-full".into(), 0, reach.len(), s, m));
+    rows.push((Estimator::RevFull.name().into(), 0, reach.len(), s, m));
     let (s, m) = measure(args.repeats, || {
         reverse_gradient(&frozen, &targets, Subset { pixels: Some(1000), paths: Some(5000), seed: 1 });
     });
-    rows.push(("rev-sub (1000 px, 5000 paths)".into(), 0, reach.len(), s, m));
+    rows.push((format!("{} (1000 px, 5000 paths)", Estimator::RevSub.name()), 0, reach.len(), s, m));
     macro_rules! forward {
         ($($k:literal),*) => {$(
             let (s, m) = measure(args.repeats, || {
                 random_gradient::<$k>(&frozen, &reach, &targets, Directions::Gaussian, &mut Rng::from_seed(1));
             });
-            rows.push(("fwd-rand".into(), $k, $k, s, m));
+            rows.push((Estimator::FwdRand.name().into(), $k, $k, s, m));
             let (s, m) = measure(args.repeats.min(2), || {
                 coordinate_gradient::<$k>(&frozen, &coords, &targets, &|_, _| {});
             });
-            rows.push((format!("fwd-full ({} directions)", coords.len()), $k, coords.len(), s, m));
+            rows.push((format!("{} ({} directions)", Estimator::FwdFull.name(), coords.len()), $k, coords.len(), s, m));
             eprintln!("K = {}: done", $k);
         )*};
     }
