@@ -9,18 +9,20 @@
 use clap::Parser;
 use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
+use dualphoton::eval::stats::median;
 use dualphoton::grad::forward::{coordinate_gradient, random_gradient, Directions};
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
-use dualphoton::io::manifest::{git_revision, peak_memory_mib, reset_peak_memory, write_json};
+use dualphoton::grad::Estimator;
+use dualphoton::io::manifest::{peak_memory_mib, reset_peak_memory, write_manifest};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
 use dualphoton::scene::{rig, Scene};
-use serde_json::json;
+use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-#[derive(Parser)]
+#[derive(Parser, Serialize)]
 #[command(about = "Time and peak memory of one gradient per estimator and lane count")]
 struct Args {
     /// Grid resolution (images res x res).
@@ -51,8 +53,15 @@ fn measure(repeats: usize, mut f: impl FnMut()) -> (f64, f64) {
         times.push(t.elapsed().as_secs_f64());
         peak = peak.max(peak_memory_mib());
     }
-    times.sort_by(|a, b| a.total_cmp(b));
-    (times[times.len() / 2], peak)
+    (median(&times), peak)
+}
+
+/// What the manifest records besides provenance.
+#[derive(Serialize)]
+struct Manifest<'a> {
+    #[serde(flatten)]
+    settings: &'a Args,
+    peak_reset_supported: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -91,21 +100,21 @@ fn run(mut args: Args) -> Result<()> {
     let (s, m) = measure(args.repeats, || {
         reverse_gradient(&frozen, &targets, Subset::full());
     });
-    rows.push(("rev-full".into(), 0, reach.len(), s, m));
+    rows.push((Estimator::RevFull.name().into(), 0, reach.len(), s, m));
     let (s, m) = measure(args.repeats, || {
         reverse_gradient(&frozen, &targets, Subset { pixels: Some(1000), paths: Some(5000), seed: 1 });
     });
-    rows.push(("rev-sub (1000 px, 5000 paths)".into(), 0, reach.len(), s, m));
+    rows.push((format!("{} (1000 px, 5000 paths)", Estimator::RevSub.name()), 0, reach.len(), s, m));
     macro_rules! forward {
         ($($k:literal),*) => {$(
             let (s, m) = measure(args.repeats, || {
                 random_gradient::<$k>(&frozen, &reach, &targets, Directions::Gaussian, &mut Rng::from_seed(1));
             });
-            rows.push(("fwd-rand".into(), $k, $k, s, m));
+            rows.push((Estimator::FwdRand.name().into(), $k, $k, s, m));
             let (s, m) = measure(args.repeats.min(2), || {
                 coordinate_gradient::<$k>(&frozen, &coords, &targets, &|_, _| {});
             });
-            rows.push((format!("fwd-full ({} directions)", coords.len()), $k, coords.len(), s, m));
+            rows.push((format!("{} ({} directions)", Estimator::FwdFull.name(), coords.len()), $k, coords.len(), s, m));
             eprintln!("K = {}: done", $k);
         )*};
     }
@@ -158,11 +167,8 @@ fn run(mut args: Args) -> Result<()> {
         started.elapsed().as_secs_f64()
     );
     std::fs::write(args.out.join("summary.md"), &md)?;
-    write_json(
-        &args.out.join("manifest.json"),
-        &json!({"res": args.res, "repeats": args.repeats, "directions": args.directions, "threads": rayon::current_num_threads(),
-                "git": git_revision(), "seconds": started.elapsed().as_secs_f64(), "peak_reset_supported": reset_peak_memory()}),
-    )?;
+    let manifest = Manifest { settings: &args, peak_reset_supported: reset_peak_memory() };
+    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
     print!("{md}");
     Ok(())
 }

@@ -17,7 +17,7 @@ use dualphoton::eval::metrics::{pearson, reference_noise, rel_l1, rel_rmse};
 use dualphoton::eval::reference::reference;
 use dualphoton::eval::sweep::{error, photon_sweep, ERROR_BLOCK};
 use dualphoton::grad::Estimator;
-use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::write_rows;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
@@ -27,12 +27,11 @@ use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
 use serde::Serialize;
-use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-#[derive(Parser)]
+#[derive(Parser, Serialize)]
 #[command(about = "Reconstruction error and renderer error against wall-clock time")]
 struct Args {
     /// Grid resolution (res^3) and image size (res x res).
@@ -42,8 +41,8 @@ struct Args {
     #[arg(long, default_value_t = 200.0)]
     budget: f64,
     /// Estimators to train with.
-    #[arg(long, value_delimiter = ',', default_value = "fwd-full,fwd-rand,rev-sub,rev-full")]
-    estimators: Vec<String>,
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "fwd-full,fwd-rand,rev-sub,rev-full")]
+    estimators: Vec<Estimator>,
     /// Photon counts of the renderer sweep.
     #[arg(long, value_delimiter = ',', default_value = "30000,100000,300000,1000000")]
     photons: Vec<u64>,
@@ -91,7 +90,7 @@ fn run(mut args: Args) -> Result<()> {
     if !(args.budget > 0.0 && args.budget.is_finite()) {
         return Err(Error(format!("--budget: {} is not a positive number of seconds", args.budget)));
     }
-    let estimators: Vec<Estimator> = args.estimators.iter().map(|e| e.parse()).collect::<Result<_>>()?;
+    let estimators = args.estimators.clone();
     std::fs::create_dir_all(&args.out)?;
     let started = Instant::now();
     let mut summary = format!(
@@ -103,13 +102,7 @@ fn run(mut args: Args) -> Result<()> {
     renderer(&args, &mut summary)?;
     let _ = writeln!(summary, "\nWall time of the whole study: {:.0} s.", started.elapsed().as_secs_f64());
     std::fs::write(args.out.join("summary.md"), &summary)?;
-    write_json(
-        &args.out.join("manifest.json"),
-        &json!({"res": args.res, "budget_s": args.budget, "estimators": args.estimators, "photons": args.photons,
-                "radii_voxels": args.radii, "path_spp": args.path_spp, "ref_spp": args.ref_spp,
-                "repeats": args.repeats, "seed": args.seed, "threads": rayon::current_num_threads(),
-                "git": git_revision(), "seconds": started.elapsed().as_secs_f64()}),
-    )?;
+    write_manifest(&args.out.join("manifest.json"), &args, started.elapsed().as_secs_f64())?;
     print!("{summary}");
     Ok(())
 }

@@ -3,16 +3,16 @@
 //! `results/table1/` (`--out` to change). `--smoke` runs a tiny version.
 
 use clap::Parser;
-use dualphoton::error::{Error, Result};
+use dualphoton::error::Result;
 use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1, rel_rmse};
-use dualphoton::grad::Estimator;
 use dualphoton::io::figures::{table1_chart, Table1Bars};
-use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::io::manifest::write_manifest;
+use dualphoton::recon::estimator::{Estimator, WeightDirections};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::paper::{self, TABLE1};
 use dualphoton::recon::problem::{paper_problem, target_render, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
-use dualphoton::recon::train::{TrainSettings, WeightDirections};
+use dualphoton::recon::train::TrainSettings;
 use dualphoton::scene::{file, rig};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -33,8 +33,8 @@ struct Args {
     #[arg(long, default_value_t = 250)]
     iterations: usize,
     /// Gradient estimator: fwd-full (default), fwd-rand, rev-sub (the paper's approximate learning), rev-full.
-    #[arg(long, default_value = "fwd-full")]
-    estimator: String,
+    #[arg(long, value_enum, default_value = "fwd-full")]
+    estimator: Estimator,
     /// Dual lanes per forward pass (1, 2, 4, 8, 16); 16 costs about as much as 8 here (results/bench_grad).
     #[arg(long, default_value_t = 16)]
     lanes: usize,
@@ -42,8 +42,8 @@ struct Args {
     #[arg(long, default_value_t = 8)]
     weight_directions: usize,
     /// How weight directions are chosen: orthonormal, guided or coordinates.
-    #[arg(long, default_value = "guided")]
-    weight_mode: String,
+    #[arg(long, value_enum, default_value = "guided")]
+    weight_mode: WeightDirections,
     /// Adam step of the latent.
     #[arg(long, default_value_t = 0.05)]
     lr_latent: f64,
@@ -86,9 +86,6 @@ struct Manifest<'a> {
     hull_voxels: usize,
     decoder: String,
     decoder_parameters: usize,
-    git: String,
-    wall_s: f64,
-    threads: usize,
 }
 
 fn main() -> std::process::ExitCode {
@@ -104,13 +101,7 @@ fn run(mut args: Args) -> Result<()> {
     }
     let started = Instant::now();
     std::fs::create_dir_all(&args.out)?;
-    let weight_mode = match args.weight_mode.as_str() {
-        "orthonormal" => WeightDirections::Orthonormal,
-        "coordinates" => WeightDirections::Coordinates,
-        "guided" => WeightDirections::Guided,
-        m => return Err(Error(format!("--weight-mode: {m:?} is not orthonormal, guided or coordinates"))),
-    };
-    let estimator: Estimator = args.estimator.parse()?;
+    let (estimator, weight_mode) = (args.estimator, args.weight_mode);
 
     // Ground truth and its images (more photons and samples than a training update).
     let target_photons = if args.smoke { 20_000 } else { paper::TARGET_PHOTONS };
@@ -210,12 +201,8 @@ fn run(mut args: Args) -> Result<()> {
         hull_voxels,
         decoder: r.model.decoder.describe(),
         decoder_parameters: r.model.decoder.param_count(),
-        git: git_revision(),
-        wall_s: started.elapsed().as_secs_f64(),
-        threads: rayon::current_num_threads(),
     };
-    let manifest = serde_json::to_value(&manifest).map_err(|e| Error(format!("manifest: {e}")))?;
-    write_json(&args.out.join("manifest.json"), &manifest)?;
+    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
     print!("{md}");
     Ok(())
 }

@@ -1,9 +1,9 @@
-//! Gradient-variance study: every estimator of the
-//! parameter gradient (64-d latent and decoder weights), at the initial
-//! parameters and midway through the default training run, over many
-//! independent seeds: mean, total variance, bias and cosine against a
-//! high-sample reference, time and peak memory per estimate, efficiency,
-//! and the measured forward-gradient noise against theory.
+//! Gradient-variance study: every estimator of the parameter gradient
+//! (64-d latent and decoder weights), at the initial parameters and midway
+//! through the default training run, over many independent seeds: mean,
+//! total variance, bias and cosine against a high-sample reference, time
+//! and peak memory per estimate, efficiency, and the measured
+//! forward-gradient noise against theory.
 //!
 //! Two kinds of noise add up in every estimate: the renderer's Monte Carlo
 //! noise (photons and pixel samples, redrawn per seed; exact estimators
@@ -17,26 +17,27 @@
 
 use clap::Parser;
 use dualphoton::error::{Error, Result};
-use dualphoton::eval::stats::median;
+use dualphoton::eval::stats::{median, EstimateStats};
 use dualphoton::grad::forward::Directions;
-use dualphoton::grad::reverse::Subset;
-use dualphoton::io::manifest::{git_revision, peak_memory_mib, reset_peak_memory, write_json};
+use dualphoton::io::manifest::{peak_memory_mib, reset_peak_memory, write_manifest};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::model::Model;
+use dualphoton::recon::estimator::Estimator::{FwdFull, FwdRand, RevFull, RevSub};
+use dualphoton::recon::estimator::{parameter_gradient, EstimatorSettings, ParamGradient};
 use dualphoton::recon::level::Level;
-use dualphoton::recon::param_grad;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::recon::train::{train, TrainSettings};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::{Purpose, Rng};
-use dualphoton::scene::{rig, Scene};
-use serde_json::json;
+use dualphoton::scene::rig;
+use rayon::current_num_threads as num_threads;
+use serde::{Deserialize, Serialize, Serializer};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-#[derive(Parser)]
+#[derive(Parser, Serialize)]
 #[command(about = "Variance, bias, cost and efficiency of every gradient estimator over many seeds")]
 struct Args {
     /// Grid resolution (res^3) and image size (res x res).
@@ -59,207 +60,137 @@ struct Args {
     seed: u64,
     /// Output directory.
     #[arg(long, default_value = "results/grad_variance")]
+    #[serde(skip)]
     out: PathBuf,
     /// A tiny run (16^3, 3 seeds) to check that everything works.
     #[arg(long)]
+    #[serde(skip)]
     smoke: bool,
     /// Only redraw the plots from the variance.csv an earlier run left in --out.
     #[arg(long)]
+    #[serde(skip)]
     replot: bool,
 }
 
-/// Which parameters a gradient is taken with respect to.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Part {
-    Latent,
-    Weights,
+/// What a run writes beside its results.
+#[derive(Serialize)]
+struct Manifest<'a> {
+    #[serde(flatten)]
+    args: &'a Args,
+    photons: u64,
+    spp: u32,
 }
 
-impl Part {
-    fn name(self) -> &'static str {
-        match self {
-            Part::Latent => "latent",
-            Part::Weights => "weights",
-        }
-    }
+/// The parameter vectors, in the order of [`Samples::parts`].
+const PARTS: [&str; 2] = ["latent", "weights"];
+
+/// One line of `variance.csv`: one method, one part, one point.
+#[derive(Serialize, Deserialize)]
+struct Row {
+    point: String,
+    part: String,
+    method: String,
+    n: usize,
+    #[serde(serialize_with = "e6")]
+    rel_variance: f64,
+    #[serde(serialize_with = "e6")]
+    bias: f64,
+    #[serde(serialize_with = "e6", rename = "bias_noise_floor")]
+    bias_floor: f64,
+    #[serde(serialize_with = "e6")]
+    rel_mse: f64,
+    #[serde(serialize_with = "f6")]
+    cosine_mean: f64,
+    #[serde(serialize_with = "f6")]
+    cosine_of_mean: f64,
+    #[serde(serialize_with = "e6")]
+    estimator_noise: f64,
+    #[serde(serialize_with = "opt4")]
+    theory: Option<f64>,
+    #[serde(serialize_with = "f4")]
+    seconds: f64,
+    #[serde(serialize_with = "f4")]
+    primal_seconds: f64,
+    #[serde(serialize_with = "f1")]
+    peak_mib: f64,
+    #[serde(serialize_with = "e6")]
+    efficiency: f64,
 }
 
-/// (dL/dz, dL/dw), each where a method gives it.
-type ByPart = (Option<Vec<f64>>, Option<Vec<f64>>);
-
-/// One way of estimating the gradient.
-#[derive(Clone, Copy)]
-enum Method {
-    /// Reverse mode on (pixels, paths), `None` = all.
-    Reverse(Option<(usize, usize)>),
-    /// Forward mode, all 64 latent coordinates, 16 lanes per pass.
-    LatentExact,
-    /// Forward mode, K random latent directions in one pass.
-    LatentRandom(usize, Directions),
-    /// Forward mode, K random weight directions (16 lanes per pass).
-    WeightsRandom(usize, Directions),
-    /// Forward mode, projection onto a guessed and K - 1 random weight directions.
-    WeightsGuided(usize),
+/// The CSV's number formats (each column keeps the precision it always had).
+macro_rules! formats {
+    ($($name:ident $fmt:literal),*) => {$(
+        fn $name<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
+            s.collect_str(&format_args!($fmt, v))
+        }
+    )*};
 }
+formats!(e6 "{:.6e}", f6 "{:.6}", f4 "{:.4}", f1 "{:.1}");
 
-impl Method {
-    fn name(self) -> String {
-        let kind = |d: Directions| if d == Directions::Gaussian { "gaussian" } else { "orthonormal" };
-        match self {
-            Method::Reverse(None) => "rev-full".into(),
-            Method::Reverse(Some((px, paths))) => format!("rev-sub {px}px/{paths}paths"),
-            Method::LatentExact => "fwd-full".into(),
-            Method::LatentRandom(k, d) | Method::WeightsRandom(k, d) => format!("fwd-rand {} K={k}", kind(d)),
-            Method::WeightsGuided(k) => format!("fwd-guided K={k}"),
-        }
-    }
-
-    fn parts(self) -> &'static [Part] {
-        match self {
-            Method::Reverse(_) => &[Part::Latent, Part::Weights],
-            Method::LatentExact | Method::LatentRandom(..) => &[Part::Latent],
-            Method::WeightsRandom(..) | Method::WeightsGuided(_) => &[Part::Weights],
-        }
-    }
-
-    /// The forward-gradient theory's added noise `E|g_hat - g|^2 / |g|^2` over `n` parameters.
-    fn theory(self, n: usize) -> Option<f64> {
-        let (n, k) = (n as f64, |k: usize| k as f64);
-        match self {
-            Method::LatentRandom(kk, Directions::Gaussian) | Method::WeightsRandom(kk, Directions::Gaussian) => {
-                Some((n + 1.0) / k(kk))
-            }
-            Method::LatentRandom(kk, Directions::Orthonormal) | Method::WeightsRandom(kk, Directions::Orthonormal) => {
-                Some(n / k(kk) - 1.0)
-            }
-            Method::LatentExact => Some(0.0),
-            _ => None,
-        }
-    }
-
-    /// (dL/dz, dL/dw) where this method gives them.
-    fn estimate(self, level: &Level, model: &Model, frozen: &Frozen, rng: &mut Rng) -> Result<ByPart> {
-        Ok(match self {
-            Method::Reverse(sizes) => {
-                let subset = match sizes {
-                    None => Subset::full(),
-                    Some((px, paths)) => Subset { pixels: Some(px), paths: Some(paths), seed: rng.below(u64::MAX) },
-                };
-                let (dz, dw) = param_grad::reverse(level, model, frozen, subset);
-                (Some(dz), Some(dw))
-            }
-            Method::LatentExact => (Some(param_grad::latent_exact(level, model, frozen, 16)?), None),
-            Method::LatentRandom(k, d) => (Some(param_grad::latent_random(level, model, frozen, k, d, rng)?), None),
-            Method::WeightsRandom(k, d) => {
-                (None, Some(param_grad::weights_random(level, model, frozen, k, d, 16.min(k), rng)?))
-            }
-            Method::WeightsGuided(k) => {
-                (None, Some(param_grad::weights_guided(level, model, frozen, k, 16.min(k), rng)?))
-            }
-        })
+fn opt4<S: Serializer>(v: &Option<f64>, s: S) -> std::result::Result<S::Ok, S::Error> {
+    match v {
+        Some(v) => f4(v, s),
+        None => s.serialize_none(),
     }
 }
 
-/// The estimators compared, with the paper's subset second.
-fn methods(pixels: usize, paths: usize) -> Vec<Method> {
-    let mut m = vec![Method::Reverse(None)];
-    for f in [4, 1] {
-        m.push(Method::Reverse(Some((pixels / f, paths / f))));
+/// The settings compared (with the paper's subset second), by label; each
+/// gives the latent's gradient, the weights' or (reverse mode) both.
+fn methods(px: usize, paths: usize) -> Vec<(String, EstimatorSettings)> {
+    use Directions::{Gaussian, Orthonormal};
+    let s = EstimatorSettings { weight_directions: 0, ..EstimatorSettings::default() };
+    let (sub, rand) = (EstimatorSettings { estimator: RevSub, ..s }, EstimatorSettings { estimator: FwdRand, ..s });
+    let kind = |d| if d == Gaussian { "gaussian" } else { "orthonormal" };
+    let mut m = vec![("rev-full".to_string(), EstimatorSettings { estimator: RevFull, ..s })];
+    for (p, q) in [(px / 4, paths / 4), (px, paths), (px * 4, paths * 4), (px * 16, paths * 16)] {
+        m.push((format!("rev-sub {p}px/{q}paths"), EstimatorSettings { subset_pixels: p, subset_paths: q, ..sub }));
     }
-    for f in [4, 16] {
-        m.push(Method::Reverse(Some((pixels * f, paths * f))));
+    m.push(("fwd-full".into(), s));
+    for (k, d) in [(1, Gaussian), (4, Gaussian), (8, Gaussian), (16, Gaussian), (4, Orthonormal), (16, Orthonormal)] {
+        m.push((format!("fwd-rand {} K={k}", kind(d)), EstimatorSettings { lanes: k, directions: d, ..rand }));
     }
-    m.push(Method::LatentExact);
-    for k in [1, 4, 8, 16] {
-        m.push(Method::LatentRandom(k, Directions::Gaussian));
+    // The weights alone (guided is fwd-full's default weight mode).
+    for (k, d) in [(1, Gaussian), (16, Gaussian), (16, Orthonormal)] {
+        let w = EstimatorSettings { latent: false, weight_directions: k, lanes: 16.min(k), directions: d, ..rand };
+        m.push((format!("fwd-rand {} K={k}", kind(d)), w));
     }
-    for k in [4, 16] {
-        m.push(Method::LatentRandom(k, Directions::Orthonormal));
-    }
-    for k in [1, 16] {
-        m.push(Method::WeightsRandom(k, Directions::Gaussian));
-    }
-    m.push(Method::WeightsRandom(16, Directions::Orthonormal));
     for k in [8, 16] {
-        m.push(Method::WeightsGuided(k));
+        let w = EstimatorSettings { latent: false, weight_directions: k, lanes: 16.min(k), ..s };
+        m.push((format!("fwd-guided K={k}"), w));
     }
     m
+}
+
+/// The forward-gradient theory's added noise `E|g_hat - g|^2 / |g|^2` over `n` parameters.
+fn theory(s: &EstimatorSettings, n: usize) -> Option<f64> {
+    let k = (if s.latent { s.lanes } else { s.weight_directions }) as f64;
+    match (s.estimator, s.directions) {
+        (FwdRand, Directions::Gaussian) => Some((n as f64 + 1.0) / k),
+        (FwdRand, Directions::Orthonormal) => Some(n as f64 / k - 1.0),
+        (FwdFull, _) if s.latent && s.weight_directions == 0 => Some(0.0),
+        _ => None,
+    }
+}
+
+/// Every (point, part) pair, in the order of the tables and plots.
+fn panels() -> impl Iterator<Item = (&'static str, &'static str)> {
+    ["initial", "midway"].into_iter().flat_map(|point| PARTS.map(|part| (point, part)))
 }
 
 /// Per-seed estimates of one method at one point.
 #[derive(Default)]
 struct Samples {
-    latent: Vec<Vec<f64>>,
-    weights: Vec<Vec<f64>>,
+    /// Estimates of each of [`PARTS`] (none where the method leaves it out).
+    parts: [Vec<Vec<f64>>; 2],
     seconds: Vec<f64>,
     peak_mib: f64,
 }
 
 impl Samples {
-    fn of(&self, part: Part) -> &[Vec<f64>] {
-        match part {
-            Part::Latent => &self.latent,
-            Part::Weights => &self.weights,
-        }
+    fn push(&mut self, g: &ParamGradient, model: &Model) {
+        self.parts[0].extend(g.latent.to_dense(model.z.len()));
+        self.parts[1].extend(g.weights.to_dense(model.w.len()));
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-fn norm2(a: &[f64]) -> f64 {
-    dot(a, a)
-}
-
-fn dist2(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum()
-}
-
-fn cosine(a: &[f64], b: &[f64]) -> f64 {
-    let d = (norm2(a) * norm2(b)).sqrt();
-    if d > 0.0 {
-        dot(a, b) / d
-    } else {
-        0.0
-    }
-}
-
-fn mean_of(xs: &[Vec<f64>]) -> Vec<f64> {
-    let mut m = vec![0.0; xs[0].len()];
-    for x in xs {
-        m.iter_mut().zip(x).for_each(|(a, b)| *a += b / xs.len() as f64);
-    }
-    m
-}
-
-/// Unbiased total variance (trace of the covariance) of the samples.
-fn total_variance(xs: &[Vec<f64>]) -> f64 {
-    if xs.len() < 2 {
-        return f64::NAN;
-    }
-    let m = mean_of(xs);
-    xs.iter().map(|x| dist2(x, &m)).sum::<f64>() / (xs.len() - 1) as f64
-}
-
-/// The statistics of one method for one part at one point.
-struct Row {
-    point: &'static str,
-    part: Part,
-    method: String,
-    n: usize,
-    rel_variance: f64,
-    bias: f64,
-    bias_floor: f64,
-    rel_mse: f64,
-    cosine_mean: f64,
-    cosine_of_mean: f64,
-    estimator_noise: f64,
-    theory: Option<f64>,
-    seconds: f64,
-    primal_seconds: f64,
-    peak_mib: f64,
-    efficiency: f64,
 }
 
 fn main() -> std::process::ExitCode {
@@ -268,13 +199,10 @@ fn main() -> std::process::ExitCode {
 
 fn run(mut args: Args) -> Result<()> {
     if args.replot {
-        return plots(&args, &read_rows(&args.out.join("variance.csv"))?);
+        return plots(&args.out, &read_rows(&args.out.join("variance.csv"))?);
     }
     if args.smoke {
-        args.res = 16;
-        args.seeds = 3;
-        args.reference_seeds = 2;
-        args.midway = 2;
+        (args.res, args.seeds, args.reference_seeds, args.midway) = (16, 3, 2, 2);
     }
     if args.seeds < 2 {
         return Err(Error::new("--seeds: need at least 2 to measure a variance"));
@@ -306,17 +234,23 @@ fn run(mut args: Args) -> Result<()> {
     })?;
     eprintln!();
 
-    let (pixels, paths) =
-        (1000 * scene.render.photons as usize / 300_000, 5000 * scene.render.photons as usize / 300_000);
-    let pixels = pixels.max(4);
-    let paths = paths.max(4);
-    let methods = methods(pixels, paths);
+    let photons = scene.render.photons as usize;
+    let methods = methods((1000 * photons / 300_000).max(4), (5000 * photons / 300_000).max(4));
     let mut rows = vec![];
     for (point, model) in [("initial", &initial), ("midway", &midway)] {
-        rows.extend(study_point(&args, &problem, &scene, point, model, &methods)?);
+        rows.extend(study_point(&args, &problem, point, model, &methods)?);
     }
 
-    write_outputs(&args, &rows, &scene, started.elapsed().as_secs_f64())?;
+    let wall_s = started.elapsed().as_secs_f64();
+    let mut csv = csv::Writer::from_path(args.out.join("variance.csv")).map_err(|e| Error(e.to_string()))?;
+    rows.iter().try_for_each(|r| csv.serialize(r)).map_err(|e| Error(format!("variance.csv: {e}")))?;
+    csv.flush()?;
+    let (photons, spp) = (scene.render.photons, scene.render.spp);
+    let md = summary(&args, &rows, photons, spp, wall_s);
+    std::fs::write(args.out.join("summary.md"), &md)?;
+    plots(&args.out, &rows)?;
+    write_manifest(&args.out.join("manifest.json"), &Manifest { args: &args, photons, spp }, wall_s)?;
+    print!("{md}");
     Ok(())
 }
 
@@ -324,25 +258,23 @@ fn run(mut args: Args) -> Result<()> {
 fn study_point(
     args: &Args,
     problem: &Problem,
-    scene: &Scene,
-    point: &'static str,
+    point: &str,
     model: &Model,
-    methods: &[Method],
+    methods: &[(String, EstimatorSettings)],
 ) -> Result<Vec<Row>> {
     let level = Level::full(problem, &model.mask);
-    let decoded = model.density(&scene.density);
-    let render = &scene.render;
+    let decoded = model.density(&problem.scene.density);
+    let render = &problem.scene.render;
 
     // High-sample reference: rev-full at more photons and samples, averaged over seeds.
     let mut reference = Samples::default();
+    let rev_full = EstimatorSettings { estimator: RevFull, ..Default::default() };
     for r in 0..args.reference_seeds {
         let f = args.reference_factor;
         let seed = 1_000_000 + args.seed * 1000 + r as u64;
         let s = level.scene_at(&decoded, render.photons * f as u64, render.spp * f, seed);
         let frozen = Frozen::new(&s, Some(&level.support));
-        let (dz, dw) = param_grad::reverse(&level, model, &frozen, Subset::full());
-        reference.latent.push(dz);
-        reference.weights.push(dw);
+        reference.push(&parameter_gradient(&level, model, &frozen, &rev_full, 0, &mut Rng::from_seed(0))?, model);
         eprintln!("{point}: reference {}/{} done", r + 1, args.reference_seeds);
     }
 
@@ -354,104 +286,65 @@ fn study_point(
         let sc = level.scene_at(&decoded, render.photons, render.spp, seed);
         let frozen = Frozen::new(&sc, Some(&level.support));
         primal.push(t.elapsed().as_secs_f64());
-        for (i, m) in methods.iter().enumerate() {
+        for (i, ((_, settings), smp)) in methods.iter().zip(&mut samples).enumerate() {
             let mut rng = Rng::new(seed, Purpose::Gradient, 7_000 + i as u64);
             reset_peak_memory();
             let t = Instant::now();
-            let (dz, dw) = m.estimate(&level, model, &frozen, &mut rng)?;
-            samples[i].seconds.push(t.elapsed().as_secs_f64());
-            samples[i].peak_mib = samples[i].peak_mib.max(peak_memory_mib());
-            samples[i].latent.extend(dz);
-            samples[i].weights.extend(dw);
+            let g = parameter_gradient(&level, model, &frozen, settings, 0, &mut rng)?;
+            smp.seconds.push(t.elapsed().as_secs_f64());
+            smp.peak_mib = smp.peak_mib.max(peak_memory_mib());
+            smp.push(&g, model);
         }
         eprint!("\r{point}: seed {}/{}   ", s + 1, args.seeds);
     }
     eprintln!();
 
-    let primal_s = median(&primal);
+    let primal_seconds = median(&primal);
     // `rev-full` on each seed's frozen paths: the exact gradient the others estimate.
     let exact = methods
         .iter()
-        .position(|m| matches!(m, Method::Reverse(None)))
+        .position(|m| m.1.estimator == RevFull)
         .map(|i| &samples[i])
         .ok_or_else(|| Error::new("the methods must include rev-full"))?;
     let mut rows = vec![];
-    for (m, smp) in methods.iter().zip(&samples) {
-        for &part in m.parts() {
-            let xs = smp.of(part);
-            let refs = reference.of(part);
-            let g_ref = mean_of(refs);
-            let g2 = norm2(&g_ref).max(f64::MIN_POSITIVE);
-            let mean = mean_of(xs);
-            let var = total_variance(xs);
-            let ref_var = if refs.len() > 1 { total_variance(refs) / refs.len() as f64 } else { 0.0 };
-            // The estimator's own noise, against rev-full on the same frozen paths.
-            let own: Vec<f64> =
-                xs.iter().zip(exact.of(part)).map(|(x, g)| dist2(x, g) / norm2(g).max(f64::MIN_POSITIVE)).collect();
+    for ((method, settings), smp) in methods.iter().zip(&samples) {
+        for (p, part) in PARTS.iter().enumerate().filter(|(p, _)| !smp.parts[*p].is_empty()) {
+            let st = EstimateStats::of(&smp.parts[p], &exact.parts[p], &reference.parts[p]);
             let seconds = median(&smp.seconds);
-            let rel_variance = var / g2;
             rows.push(Row {
-                point,
-                part,
-                method: m.name(),
-                n: g_ref.len(),
-                rel_variance,
-                bias: (dist2(&mean, &g_ref) / g2).sqrt(),
-                bias_floor: ((var / xs.len() as f64 + ref_var) / g2).sqrt(),
-                rel_mse: xs.iter().map(|x| dist2(x, &g_ref)).sum::<f64>() / xs.len() as f64 / g2,
-                cosine_mean: xs.iter().map(|x| cosine(x, &g_ref)).sum::<f64>() / xs.len() as f64,
-                cosine_of_mean: cosine(&mean, &g_ref),
-                estimator_noise: own.iter().sum::<f64>() / own.len() as f64,
-                theory: m.theory(g_ref.len()),
+                point: point.into(),
+                part: part.to_string(),
+                method: method.clone(),
+                n: st.n,
+                rel_variance: st.rel_variance,
+                bias: st.bias,
+                bias_floor: st.bias_floor,
+                rel_mse: st.rel_mse,
+                cosine_mean: st.cosine_mean,
+                cosine_of_mean: st.cosine_of_mean,
+                estimator_noise: st.estimator_noise,
+                theory: theory(settings, st.n),
                 seconds,
-                primal_seconds: primal_s,
+                primal_seconds,
                 peak_mib: smp.peak_mib,
-                efficiency: 1.0 / (rel_variance * (seconds + primal_s)),
+                efficiency: 1.0 / (st.rel_variance * (seconds + primal_seconds)),
             });
         }
     }
     Ok(rows)
 }
 
-fn fmt_opt(v: Option<f64>) -> String {
-    v.map_or(String::new(), |v| format!("{v:.4}"))
-}
-
-fn write_outputs(args: &Args, rows: &[Row], scene: &Scene, wall_s: f64) -> Result<()> {
-    let mut csv = String::from(
-        "point,part,method,n,rel_variance,bias,bias_noise_floor,rel_mse,cosine_mean,cosine_of_mean,estimator_noise,theory,seconds,primal_seconds,peak_mib,efficiency\n",
-    );
-    for r in rows {
-        let _ = writeln!(
-            csv,
-            "{},{},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6},{:.6},{:.6e},{},{:.4},{:.4},{:.1},{:.6e}",
-            r.point,
-            r.part.name(),
-            r.method,
-            r.n,
-            r.rel_variance,
-            r.bias,
-            r.bias_floor,
-            r.rel_mse,
-            r.cosine_mean,
-            r.cosine_of_mean,
-            r.estimator_noise,
-            fmt_opt(r.theory),
-            r.seconds,
-            r.primal_seconds,
-            r.peak_mib,
-            r.efficiency
-        );
-    }
-    std::fs::write(args.out.join("variance.csv"), csv)?;
-
+/// The study's `summary.md`: what was measured, then one table per point and part.
+fn summary(args: &Args, rows: &[Row], photons: u64, spp: u32, wall_s: f64) -> String {
+    let Args { res, seeds, midway, reference_factor, reference_seeds, .. } = args;
+    let (threads, weights) = (num_threads(), rows.iter().find(|r| r.part == PARTS[1]).map_or(0, |r| r.n));
     let mut md = format!(
-        "# Gradient variance of every estimator ({}^3 paper rig, {} seeds)\n\n\
-         Regenerate: `cargo run --release --bin grad_variance` ({:.0} s on {} threads).\n\n\
-         Gradient of the training loss with respect to the 64-d latent (`latent`) and the {} decoder weights \
-         (`weights`), at the initial parameters and after {} training updates (`midway`). Each seed redraws the \
-         renderer's photons and pixel samples ({} photons, {} spp) and the estimator's own directions or subsets. \
-         Reference: `rev-full` at {}x photons and samples, mean of {} seeds.\n\n\
+        "# Gradient variance of every estimator ({res}^3 paper rig, {seeds} seeds)\n\n\
+         Regenerate: `cargo run --release --bin grad_variance` ({wall_s:.0} s on {threads} threads).\n\n\
+         Gradient of the training loss with respect to the 64-d latent (`latent`) and the {weights} decoder weights \
+         (`weights`), at the initial parameters and after {midway} training updates (`midway`). Each seed redraws the \
+         renderer's photons and pixel samples ({photons} photons, {spp} spp) and the estimator's own directions or \
+         subsets. Reference: `rev-full` at {reference_factor}x photons and samples, mean of {reference_seeds} seeds.\n\n\
          - `rel. var.`: total variance over seeds / |g_ref|^2 (renderer noise + the estimator's own).\n\
          - `bias`: |mean - g_ref| / |g_ref|; `floor`: what noise alone would give (mean's and reference's standard error).\n\
          - `rel. MSE`: mean |g_hat - g_ref|^2 / |g_ref|^2 over seeds (variance + bias^2: the fair measure for biased estimators).\n\
@@ -460,172 +353,85 @@ fn write_outputs(args: &Args, rows: &[Row], scene: &Scene, wall_s: f64) -> Resul
          own noise, renderer noise excluded), next to the forward-gradient theory: (n+1)/K Gaussian, n/K - 1 orthonormal.\n\
          - `s`: median seconds per estimate (the primal render that freezes the estimator is extra); \
          `efficiency` = 1 / (rel. var. x (s + primal s)).\n",
-        args.res,
-        args.seeds,
-        wall_s,
-        rayon::current_num_threads(),
-        rows.iter().find(|r| r.part == Part::Weights).map_or(0, |r| r.n),
-        args.midway,
-        scene.render.photons,
-        scene.render.spp,
-        args.reference_factor,
-        args.reference_seeds,
     );
-    for point in ["initial", "midway"] {
-        for part in [Part::Latent, Part::Weights] {
-            let sel: Vec<&Row> = rows.iter().filter(|r| r.point == point && r.part == part).collect();
-            let Some(first) = sel.first() else { continue };
+    for (point, part) in panels() {
+        let sel: Vec<&Row> = rows.iter().filter(|r| r.point == point && r.part == part).collect();
+        let Some(first) = sel.first() else { continue };
+        let _ = writeln!(
+            md,
+            "\n## {point}, {} (n = {}; primal render {:.2} s)\n\n\
+             | method | rel. var. | bias | floor | rel. MSE | cos | cos(mean) | own noise | theory | s | peak MiB | efficiency |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|---|",
+            part,
+            first.n,
+            first.primal_seconds
+        );
+        for r in sel {
+            let theory = r.theory.map_or(String::new(), |t| format!("{t:.3e}"));
             let _ = writeln!(
                 md,
-                "\n## {point}, {} (n = {}; primal render {:.2} s)\n\n\
-                 | method | rel. var. | bias | floor | rel. MSE | cos | cos(mean) | own noise | theory | s | peak MiB | efficiency |\n\
-                 |---|---|---|---|---|---|---|---|---|---|---|---|",
-                part.name(),
-                first.n,
-                first.primal_seconds
+                "| {} | {:.3e} | {:.3} | {:.3} | {:.3e} | {:.3} | {:.3} | {:.3e} | {theory} | {:.2} | {:.0} | {:.3e} |",
+                r.method,
+                r.rel_variance,
+                r.bias,
+                r.bias_floor,
+                r.rel_mse,
+                r.cosine_mean,
+                r.cosine_of_mean,
+                r.estimator_noise,
+                r.seconds,
+                r.peak_mib,
+                r.efficiency
             );
-            for r in sel {
-                let _ = writeln!(
-                    md,
-                    "| {} | {:.3e} | {:.3} | {:.3} | {:.3e} | {:.3} | {:.3} | {:.3e} | {} | {:.2} | {:.0} | {:.3e} |",
-                    r.method,
-                    r.rel_variance,
-                    r.bias,
-                    r.bias_floor,
-                    r.rel_mse,
-                    r.cosine_mean,
-                    r.cosine_of_mean,
-                    r.estimator_noise,
-                    r.theory.map_or(String::new(), |t| format!("{t:.3e}")),
-                    r.seconds,
-                    r.peak_mib,
-                    r.efficiency
-                );
-            }
         }
     }
-    std::fs::write(args.out.join("summary.md"), &md)?;
-    plots(args, rows)?;
-    write_json(
-        &args.out.join("manifest.json"),
-        &json!({
-            "res": args.res, "seeds": args.seeds, "reference_seeds": args.reference_seeds,
-            "reference_factor": args.reference_factor, "midway": args.midway, "seed": args.seed,
-            "photons": scene.render.photons, "spp": scene.render.spp,
-            "git": git_revision(), "wall_s": wall_s, "threads": rayon::current_num_threads(),
-        }),
-    )?;
-    print!("{md}");
-    Ok(())
+    md
 }
 
 /// The rows of a `variance.csv` this binary wrote.
-fn read_rows(path: &std::path::Path) -> Result<Vec<Row>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error(format!("cannot read {}: {e}", path.display())))?;
-    let bad = |line: usize| Error(format!("{}: line {} is not a row of this study", path.display(), line + 1));
-    let mut rows = vec![];
-    for (i, line) in text.lines().enumerate().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 16 {
-            return Err(bad(i));
-        }
-        let num = |k: usize| f[k].parse::<f64>().map_err(|_| bad(i));
-        rows.push(Row {
-            point: match f[0] {
-                "initial" => "initial",
-                "midway" => "midway",
-                _ => return Err(bad(i)),
-            },
-            part: if f[1] == "latent" { Part::Latent } else { Part::Weights },
-            method: f[2].to_string(),
-            n: f[3].parse().map_err(|_| bad(i))?,
-            rel_variance: num(4)?,
-            bias: num(5)?,
-            bias_floor: num(6)?,
-            rel_mse: num(7)?,
-            cosine_mean: num(8)?,
-            cosine_of_mean: num(9)?,
-            estimator_noise: num(10)?,
-            theory: f[11].parse().ok(),
-            seconds: num(12)?,
-            primal_seconds: num(13)?,
-            peak_mib: num(14)?,
-            efficiency: num(15)?,
-        });
-    }
-    Ok(rows)
-}
-
-/// A method's family: the sizes of one estimator joined into one line.
-fn family(method: &str) -> String {
-    if method.starts_with("rev-sub") {
-        "rev-sub (subsets 1/4 to 16 x the paper's)".into()
-    } else if let Some((head, _)) = method.split_once(" K=") {
-        format!("{head} (over K)")
-    } else {
-        method.into()
-    }
+fn read_rows(path: &Path) -> Result<Vec<Row>> {
+    let bad = |e: csv::Error| Error(format!("{}: {e}", path.display()));
+    csv::Reader::from_path(path).map_err(bad)?.deserialize().collect::<std::result::Result<_, _>>().map_err(bad)
 }
 
 /// Relative variance against cost per point and part (each estimator
 /// family one line over its sizes), and the theory check.
-fn plots(args: &Args, rows: &[Row]) -> Result<()> {
-    for point in ["initial", "midway"] {
-        for part in [Part::Latent, Part::Weights] {
-            let mut series: Vec<Series> = vec![];
-            for r in rows.iter().filter(|r| r.point == point && r.part == part) {
-                let name = family(&r.method);
-                let p = (r.seconds + r.primal_seconds, r.rel_variance);
-                match series.iter_mut().find(|s| s.name == name) {
-                    Some(s) => s.points.push(p),
-                    None => series.push(Series { name, points: vec![p], markers: true }),
-                }
+fn plots(out: &Path, rows: &[Row]) -> Result<()> {
+    // A method's family: the sizes of one estimator joined into one line.
+    let family = |method: &str| match method.split_once(" K=") {
+        _ if method.starts_with("rev-sub") => "rev-sub (subsets 1/4 to 16 x the paper's)".to_string(),
+        Some((head, _)) => format!("{head} (over K)"),
+        None => method.to_string(),
+    };
+    for (point, part) in panels() {
+        let mut series: Vec<Series> = vec![];
+        for r in rows.iter().filter(|r| r.point == point && r.part == part) {
+            let (name, p) = (family(&r.method), (r.seconds + r.primal_seconds, r.rel_variance));
+            match series.iter_mut().find(|s| s.name == name) {
+                Some(s) => s.points.push(p),
+                None => series.push(Series { name, points: vec![p], markers: true }),
             }
-            series.iter_mut().for_each(|s| s.points.sort_by(|a, b| a.0.total_cmp(&b.0)));
-            line_chart(
-                &args.out.join(format!("variance_vs_time_{}_{point}.svg", part.name())),
-                &Axes {
-                    title: &format!("Gradient w.r.t. the {} ({point}): variance against cost", part.name()),
-                    x: "seconds per estimate (incl. the primal render)",
-                    y: "total variance / |g_ref|^2",
-                    log_x: true,
-                    log_y: true,
-                },
-                &series,
-            )?;
         }
+        series.iter_mut().for_each(|s| s.points.sort_by(|a, b| a.0.total_cmp(&b.0)));
+        let title = format!("Gradient w.r.t. the {} ({point}): variance against cost", part);
+        let x = "seconds per estimate (incl. the primal render)";
+        let axes = Axes { title: &title, x, y: "total variance / |g_ref|^2", log_x: true, log_y: true };
+        line_chart(&out.join(format!("variance_vs_time_{}_{point}.svg", part)), &axes, &series)?;
     }
     // Theory check: measured own noise against (n+1)/K or n/K - 1.
-    let mut series = vec![];
-    for point in ["initial", "midway"] {
-        let pts = |pred: &dyn Fn(&Row) -> bool| -> Vec<(f64, f64)> {
-            rows.iter()
-                .filter(|r| r.point == point && pred(r))
-                .filter_map(|r| Some((r.theory?, r.estimator_noise)))
-                .collect()
-        };
-        series.push(Series {
-            name: format!("fwd-rand, {point}"),
-            points: pts(&|r| r.theory.is_some_and(|t| t > 0.0)),
-            markers: true,
-        });
-    }
-    let all: Vec<f64> = rows.iter().filter_map(|r| r.theory).filter(|&t| t > 0.0).collect();
-    let (lo, hi) = all.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
-    series.push(Series {
-        name: "theory (measured = predicted)".into(),
-        points: vec![(lo, lo), (hi, hi)],
-        markers: false,
-    });
-    line_chart(
-        &args.out.join("theory_check.svg"),
-        &Axes {
-            title: "Forward-gradient noise: measured against theory",
-            x: "predicted E|g_hat - g|^2 / |g|^2  ((n+1)/K or n/K - 1)",
-            y: "measured over seeds",
-            log_x: true,
-            log_y: true,
-        },
-        &series,
-    )
+    let random = |point: &str| -> Vec<(f64, f64)> {
+        let rows = rows.iter().filter(|r| r.point == point && r.theory.is_some_and(|t| t > 0.0));
+        rows.filter_map(|r| Some((r.theory?, r.estimator_noise))).collect()
+    };
+    let all = rows.iter().filter_map(|r| r.theory).filter(|&t| t > 0.0);
+    let (lo, hi) = all.fold((f64::INFINITY, 0.0f64), |(a, b), t| (a.min(t), b.max(t)));
+    let series = [
+        Series { name: "fwd-rand, initial".into(), points: random("initial"), markers: true },
+        Series { name: "fwd-rand, midway".into(), points: random("midway"), markers: true },
+        Series { name: "theory (measured = predicted)".into(), points: vec![(lo, lo), (hi, hi)], markers: false },
+    ];
+    let x = "predicted E|g_hat - g|^2 / |g|^2  ((n+1)/K or n/K - 1)";
+    let title = "Forward-gradient noise: measured against theory";
+    let axes = Axes { title, x, y: "measured over seeds", log_x: true, log_y: true };
+    line_chart(&out.join("theory_check.svg"), &axes, &series)
 }

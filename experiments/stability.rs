@@ -11,7 +11,7 @@
 use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::stability::{run_all, Kind, Outcome, Settings, FD_TOL, FLOOR};
-use dualphoton::io::manifest::{git_revision, write_json};
+use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -76,9 +76,6 @@ impl<'a> From<&'a Outcome> for Row<'a> {
 struct Manifest<'a> {
     settings: &'a Settings,
     smoke: bool,
-    threads: usize,
-    git: String,
-    seconds: f64,
     cases: usize,
     passed: usize,
 }
@@ -98,16 +95,8 @@ fn run(args: Args) -> Result<()> {
     plot(&args.out.join("fd_error.svg"), &rows)?;
     std::fs::write(args.out.join("summary.md"), summary(&rows, &args, &settings, seconds))?;
     let passed = rows.iter().filter(|r| r.passed).count();
-    let manifest = Manifest {
-        settings: &settings,
-        smoke: args.smoke,
-        threads: rayon::current_num_threads(),
-        git: git_revision(),
-        seconds,
-        cases: rows.len(),
-        passed,
-    };
-    write_json(&args.out.join("manifest.json"), &serde_json::to_value(&manifest).map_err(|e| Error(e.to_string()))?)?;
+    let manifest = Manifest { settings: &settings, smoke: args.smoke, cases: rows.len(), passed };
+    write_manifest(&args.out.join("manifest.json"), &manifest, seconds)?;
     let failed: Vec<&str> = rows.iter().filter(|r| !r.passed).map(|r| r.case.as_str()).collect();
     eprintln!("{} cases, {} failed, {seconds:.1} s; report in {}", rows.len(), failed.len(), args.out.display());
     if !failed.is_empty() {

@@ -90,9 +90,9 @@ enum Command {
         /// Output file (.npy).
         #[arg(long)]
         out: PathBuf,
-        /// fwd-full, fwd-rand, rev-sub or rev-full.
-        #[arg(long, default_value = "rev-full")]
-        estimator: String,
+        /// Gradient estimator.
+        #[arg(long, value_enum, default_value = "rev-full")]
+        estimator: Estimator,
         /// Seed of the render (the images differentiated are those `render --seed N` writes).
         #[arg(long)]
         seed: Option<u64>,
@@ -136,9 +136,9 @@ enum Command {
         /// Cameras held out from training (the last N of the scene).
         #[arg(long, default_value_t = 0)]
         held_out: usize,
-        /// fwd-full, fwd-rand, rev-sub or rev-full.
-        #[arg(long, default_value = "fwd-full")]
-        estimator: String,
+        /// Gradient estimator.
+        #[arg(long, value_enum, default_value = "fwd-full")]
+        estimator: Estimator,
         /// Adam updates.
         #[arg(long, default_value_t = 250)]
         iterations: usize,
@@ -218,14 +218,8 @@ fn run(command: Command) -> Result<()> {
             scene.render.seed = seed.unwrap_or(scene.render.seed);
             scene.render.photons = photons.unwrap_or(scene.render.photons);
             file::validate(&scene)?;
-            let opts = GradOptions {
-                estimator: estimator.parse()?,
-                lanes,
-                pixels,
-                paths,
-                directions: Directions::Gaussian,
-                seed: estimator_seed,
-            };
+            let opts =
+                GradOptions { estimator, lanes, pixels, paths, directions: Directions::Gaussian, seed: estimator_seed };
             if !LANES.contains(&lanes) {
                 return Err(Error(format!("--lanes: {lanes} is not one of 1, 2, 4, 8, 16")));
             }
@@ -245,8 +239,7 @@ fn run(command: Command) -> Result<()> {
                 )));
             }
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
-            let train =
-                TrainSettings { iterations, estimator: estimator.parse()?, photons, seed, ..TrainSettings::default() };
+            let train = TrainSettings { iterations, estimator, photons, seed, ..TrainSettings::default() };
             let settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
             let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
             let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;

@@ -63,24 +63,49 @@ pub enum Directions {
 }
 
 /// K random directions over `n` parameters and the factor that makes
-/// `factor * Σ (∇L·v) v` unbiased.
+/// `factor * Σ (∇L·v) v` unbiased. Orthonormal: at most `n` directions can
+/// be; any beyond the first `n` stay Gaussian.
 pub fn random_directions<const K: usize>(n: usize, kind: Directions, rng: &mut Rng) -> ([Vec<f64>; K], f64) {
-    let mut dirs: [Vec<f64>; K] = std::array::from_fn(|_| (0..n).map(|_| rng.normal()).collect());
+    let dirs: [Vec<f64>; K] = std::array::from_fn(|_| (0..n).map(|_| rng.normal()).collect());
     match kind {
         Directions::Gaussian => (dirs, 1.0 / K as f64),
         Directions::Orthonormal => {
-            for k in 0..K.min(n) {
-                for j in 0..k {
-                    let dot: f64 = dirs[k].iter().zip(&dirs[j]).map(|(a, b)| a * b).sum();
-                    let (head, tail) = dirs.split_at_mut(k);
-                    tail[0].iter_mut().zip(&head[j]).for_each(|(a, b)| *a -= dot * b);
-                }
-                let norm = dirs[k].iter().map(|a| a * a).sum::<f64>().sqrt();
-                dirs[k].iter_mut().for_each(|a| *a /= norm);
-            }
-            (dirs, n as f64 / K as f64)
+            let m = K.min(n);
+            let mut first = Vec::from(dirs);
+            let rest = first.split_off(m);
+            let mut basis = orthonormalize(first);
+            // A direction that vanished (probability zero) contributes nothing.
+            basis.resize(m, vec![0.0; n]);
+            let mut all = basis.into_iter().chain(rest);
+            (std::array::from_fn(|_| all.next().unwrap_or_default()), n as f64 / K as f64)
         }
     }
+}
+
+/// Modified Gram-Schmidt, in order: each vector loses its components along
+/// the basis kept so far, then is normalised; one whose remainder has zero
+/// or non-finite length is dropped. Returns the orthonormal basis.
+///
+/// ```
+/// use dualphoton::grad::forward::orthonormalize;
+/// let q = orthonormalize(vec![vec![2.0, 0.0], vec![3.0, 0.0], vec![1.0, 1.0]]);
+/// // The second vector is parallel to the first: dropped.
+/// assert_eq!(q, vec![vec![1.0, 0.0], vec![0.0, 1.0]]);
+/// ```
+pub fn orthonormalize(vectors: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+    let mut basis: Vec<Vec<f64>> = Vec::with_capacity(vectors.len());
+    for mut v in vectors {
+        for b in &basis {
+            let dot: f64 = v.iter().zip(b).map(|(a, c)| a * c).sum();
+            v.iter_mut().zip(b).for_each(|(a, c)| *a -= dot * c);
+        }
+        let norm = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        if norm > 0.0 && norm.is_finite() {
+            v.iter_mut().for_each(|a| *a /= norm);
+            basis.push(v);
+        }
+    }
+    basis
 }
 
 /// `fwd-rand`: an unbiased estimate of `dL/drho` on the voxels `params`
@@ -104,4 +129,29 @@ pub fn random_gradient<const K: usize>(
         grad[v] = factor * (0..K).map(|k| d[k] * dirs[k][i]).sum::<f64>();
     }
     grad
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dot(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| x * y).sum()
+    }
+
+    #[test]
+    fn orthonormal_directions_are_orthonormal_up_to_n_of_them() {
+        let (dirs, factor) = random_directions::<4>(3, Directions::Orthonormal, &mut Rng::from_seed(2));
+        assert_eq!(factor, 0.75);
+        for i in 0..3 {
+            for j in 0..3 {
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((dot(&dirs[i], &dirs[j]) - want).abs() < 1e-12);
+            }
+        }
+        // The fourth cannot be orthogonal to the other three: it stays the Gaussian draw.
+        let mut rng = Rng::from_seed(2);
+        let drawn: Vec<Vec<f64>> = (0..4).map(|_| (0..3).map(|_| rng.normal()).collect()).collect();
+        assert_eq!(dirs[3], drawn[3]);
+    }
 }

@@ -20,12 +20,18 @@ pub mod forward;
 pub mod loss;
 pub mod reverse;
 
-use crate::bail;
-use crate::error::{Error, Result};
-use std::str::FromStr;
+use crate::error::Result;
+use crate::image::Image;
+use crate::render::frozen::Frozen;
+use crate::rng::{Purpose, Rng};
+use forward::{coordinate_gradient, random_gradient, Directions};
+use reverse::{reverse_gradient, Subset};
+use serde::{Deserialize, Serialize};
 
-/// A gradient estimator, by its command-line name.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A gradient estimator, by its command-line name (`fwd-full`, `fwd-rand`,
+/// `rev-sub`, `rev-full`: clap and serde spell it the same way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Estimator {
     /// Forward mode over every coordinate direction (exact).
     FwdFull,
@@ -35,19 +41,6 @@ pub enum Estimator {
     RevSub,
     /// Reverse mode over everything (exact).
     RevFull,
-}
-
-impl FromStr for Estimator {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self> {
-        Ok(match s {
-            "fwd-full" => Estimator::FwdFull,
-            "fwd-rand" => Estimator::FwdRand,
-            "rev-sub" => Estimator::RevSub,
-            "rev-full" => Estimator::RevFull,
-            _ => bail!("--estimator: unknown estimator {s:?} (fwd-full, fwd-rand, rev-sub, rev-full)"),
-        })
-    }
 }
 
 impl Estimator {
@@ -61,12 +54,6 @@ impl Estimator {
         }
     }
 }
-
-use crate::image::Image;
-use crate::render::frozen::Frozen;
-use crate::rng::{Purpose, Rng};
-use forward::{coordinate_gradient, random_gradient, Directions};
-use reverse::{reverse_gradient, Subset};
 
 /// Lane counts a forward pass can carry (`DualSVec64<K>`).
 pub const LANES: [usize; 5] = [1, 2, 4, 8, 16];
@@ -149,4 +136,19 @@ pub fn voxel_gradient(
 /// `dL/drho` at the listed voxels by forward mode (coordinate directions).
 pub fn forward_at(frozen: &Frozen, targets: &[Image], voxels: &[usize], lanes: usize) -> Result<Vec<f64>> {
     Ok(with_lanes!(lanes, coordinate_gradient(frozen, voxels, targets, &|_, _| {})))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::ValueEnum;
+
+    #[test]
+    fn estimator_names_agree_with_clap_and_serde() {
+        for e in Estimator::value_variants() {
+            let clap_name = e.to_possible_value().map(|v| v.get_name().to_string());
+            assert_eq!(clap_name.as_deref(), Some(e.name()));
+            assert_eq!(serde_json::to_string(e).ok(), Some(format!("\"{}\"", e.name())));
+        }
+    }
 }

@@ -1,10 +1,12 @@
 //! Reconstruction: from images to a density. The problem (scene, target
 //! images, the paper's setup and numbers), the visual hull, the resolution
 //! levels of coarse-to-fine training, the gradients of the loss with respect
-//! to the model's parameters, Adam, the training loop, its progress and ETA,
-//! a whole reconstruction and the files it is written to.
+//! to the model's parameters and the one estimator vocabulary that chooses
+//! among them, Adam, the training loop, its progress and ETA, a whole
+//! reconstruction and the files it is written to.
 
 pub mod adam;
+pub mod estimator;
 pub mod hull;
 pub mod level;
 pub mod outputs;

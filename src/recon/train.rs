@@ -4,7 +4,7 @@
 //! (detached sampling at the current density), so the noise averages out
 //! over iterations.
 //!
-//! Gradients per estimator:
+//! Gradients per estimator ([`super::estimator`] computes them):
 //! - `fwd-full` (default): the latent's gradient is exact, from 64
 //!   coordinate directions through decoder and renderer in chunks of K dual
 //!   lanes; the decoder weights get `weight_directions` directional
@@ -14,15 +14,13 @@
 //!   approximate learning for `rev-sub`), then the decoder's own
 //!   vector-Jacobian product: exact (or unbiased) for latent and weights.
 
+use super::estimator::{parameter_gradient, Entries, Estimator, EstimatorSettings, WeightDirections};
 use super::level::Level;
-use super::param_grad;
 use super::problem::Problem;
+use super::progress::coarse_updates;
 use crate::error::Result;
 use crate::eval::metrics::{rel_l1, rel_rmse};
-use crate::grad::forward::Directions;
 use crate::grad::loss::mse;
-use crate::grad::reverse::Subset;
-use crate::grad::Estimator;
 use crate::image::Image;
 use crate::model::Model;
 use crate::recon::adam::Adam;
@@ -30,20 +28,6 @@ use crate::render::frozen::Frozen;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
 use std::time::Instant;
-
-/// How the decoder weights get their directional derivatives in forward mode.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum WeightDirections {
-    /// Exact partial derivatives of a block of weights, cycling through all of them.
-    Coordinates,
-    /// Random orthonormal directions; the step uses the projection of the
-    /// gradient onto their span (scaled to be unbiased: `n/K Σ (g·q) q`).
-    Orthonormal,
-    /// A guessed direction first, then random ones, orthonormalised; the
-    /// step is the exact projection of the gradient onto their span
-    /// ([`param_grad::weights_guided`]).
-    Guided,
-}
 
 /// Everything a training run is set up with.
 #[derive(Clone, Debug)]
@@ -106,6 +90,21 @@ impl Default for TrainSettings {
     }
 }
 
+impl TrainSettings {
+    /// The gradient estimator these settings train with.
+    pub fn estimator_settings(&self) -> EstimatorSettings {
+        EstimatorSettings {
+            estimator: self.estimator,
+            lanes: self.lanes,
+            weight_directions: self.weight_directions,
+            weight_mode: self.weight_mode,
+            subset_pixels: self.subset_pixels,
+            subset_paths: self.subset_paths,
+            ..EstimatorSettings::default()
+        }
+    }
+}
+
 /// One line of the training log.
 #[derive(Clone, Debug, Default)]
 pub struct LogRow {
@@ -140,9 +139,9 @@ pub fn train(
     let mut adam_w = Adam::new(model.w.len(), settings.lr_weights);
     let fine = Level::full(problem, &model.mask);
     let coarse = if settings.coarse_fraction > 0.0 { Level::half(problem, &model.mask) } else { None };
-    let coarse_updates = (settings.coarse_fraction.clamp(0.0, 1.0) * settings.iterations as f64).round() as usize;
+    let coarse_updates = coarse_updates(settings, coarse.is_some());
     let mut rng = Rng::new(settings.seed, Purpose::Gradient, 1_000_000);
-    let mut next_weight = 0usize;
+    let estimator = settings.estimator_settings();
     for it in 0..settings.iterations {
         let elapsed = start.elapsed().as_secs_f64();
         let coarse_now = match settings.time_budget {
@@ -160,12 +159,12 @@ pub fn train(
         let frozen = Frozen::new(&scene, Some(&level.support));
         let row = log_row(it, problem, level, model, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
-        let (mut gz, mut gw) = gradient(level, model, &frozen, settings, &mut rng, &mut next_weight)?;
+        let mut g = parameter_gradient(level, model, &frozen, &estimator, it, &mut rng)?;
         if settings.sparsity > 0.0 {
-            add_sparsity_gradient(model, settings.sparsity, &mut gz, &mut gw);
+            add_sparsity_gradient(model, settings.sparsity, &mut g.latent, &mut g.weights);
         }
-        adam_z.step_sparse(&mut model.z, &gz.0, &gz.1);
-        adam_w.step_sparse(&mut model.w, &gw.0, &gw.1);
+        adam_z.step_sparse(&mut model.z, &g.latent.indices, &g.latent.values);
+        adam_w.step_sparse(&mut model.w, &g.weights.indices, &g.weights.values);
     }
     Ok(())
 }
@@ -205,71 +204,15 @@ fn log_row(
 
 /// Adds the gradient of `sparsity * mean(density over the hull)` to both
 /// sparse gradients (made dense where they were not).
-fn add_sparsity_gradient(model: &Model, sparsity: f64, gz: &mut Sparse, gw: &mut Sparse) {
+fn add_sparsity_gradient(model: &Model, sparsity: f64, gz: &mut Entries, gw: &mut Entries) {
     let hull = model.mask.iter().filter(|&&m| m).count().max(1) as f64;
     let seed: Vec<f64> = model.mask.iter().map(|&m| if m { sparsity / hull } else { 0.0 }).collect();
     let (dz, dw) = model.decoder.backward(&model.z, &model.w, &model.mask, &seed);
     for (g, d) in [(gz, dz), (gw, dw)] {
         let mut dense = d;
-        for (&i, &v) in g.0.iter().zip(&g.1) {
+        for (&i, &v) in g.indices.iter().zip(&g.values) {
             dense[i] += v;
         }
-        *g = ((0..dense.len()).collect(), dense);
-    }
-}
-
-/// (indices, gradient) pairs for the latent and for the weights.
-type Sparse = (Vec<usize>, Vec<f64>);
-
-/// This update's gradient estimate by the settings' estimator.
-fn gradient(
-    level: &Level,
-    model: &Model,
-    frozen: &Frozen,
-    settings: &TrainSettings,
-    rng: &mut Rng,
-    next_weight: &mut usize,
-) -> Result<(Sparse, Sparse)> {
-    let dense = |g: Vec<f64>| ((0..g.len()).collect::<Vec<_>>(), g);
-    let k = settings.weight_directions;
-    let lanes = settings.lanes;
-    match settings.estimator {
-        Estimator::RevFull | Estimator::RevSub => {
-            let subset = if settings.estimator == Estimator::RevFull {
-                Subset::full()
-            } else {
-                Subset {
-                    pixels: Some(settings.subset_pixels),
-                    paths: Some(settings.subset_paths),
-                    seed: rng.below(u64::MAX),
-                }
-            };
-            let (dz, dw) = param_grad::reverse(level, model, frozen, subset);
-            Ok((dense(dz), dense(dw)))
-        }
-        Estimator::FwdFull => {
-            let dz = param_grad::latent_exact(level, model, frozen, lanes)?;
-            let gw = match (k, settings.weight_mode) {
-                (0, _) => (vec![], vec![]),
-                (_, WeightDirections::Coordinates) => {
-                    param_grad::weights_coordinates(level, model, frozen, k, lanes, next_weight)?
-                }
-                (_, WeightDirections::Orthonormal) => {
-                    dense(param_grad::weights_random(level, model, frozen, k, Directions::Orthonormal, lanes, rng)?)
-                }
-                (_, WeightDirections::Guided) => {
-                    dense(param_grad::weights_guided(level, model, frozen, k, lanes, rng)?)
-                }
-            };
-            Ok((dense(dz), gw))
-        }
-        Estimator::FwdRand => {
-            let dz = param_grad::latent_random(level, model, frozen, lanes, Directions::Gaussian, rng)?;
-            let gw = match k {
-                0 => (vec![], vec![]),
-                _ => dense(param_grad::weights_random(level, model, frozen, k, Directions::Gaussian, lanes, rng)?),
-            };
-            Ok((dense(dz), gw))
-        }
+        *g = Entries::dense(dense);
     }
 }

@@ -1,0 +1,209 @@
+//! The one vocabulary of gradient estimators for the model's parameters
+//! (the 64-d latent and the decoder weights) and the one dispatch that turns
+//! a choice into an estimate. Training takes one estimate per update; the
+//! gradient-variance study compares many settings of the same dispatch.
+//!
+//! Random draws come from the caller's [`Rng`], always in the same order:
+//! `rev-sub` draws one subset seed; `fwd-rand` draws the latent's directions,
+//! then the weights'; `guided` draws its `k - 1` Gaussian directions in
+//! blocks of 16. `fwd-full`'s latent and coordinate mode draw nothing.
+
+use super::level::Level;
+use super::param_grad;
+use crate::error::Result;
+use crate::grad::forward::Directions;
+use crate::grad::reverse::Subset;
+pub use crate::grad::Estimator;
+use crate::model::Model;
+use crate::render::frozen::Frozen;
+use crate::rng::Rng;
+use serde::{Deserialize, Serialize};
+
+/// How the decoder weights get their directional derivatives under `fwd-full`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WeightDirections {
+    /// Exact partial derivatives of a block of weights, cycling through all of them.
+    Coordinates,
+    /// Random orthonormal directions; the step uses the projection of the
+    /// gradient onto their span (scaled to be unbiased: `n/K Σ (g·q) q`).
+    Orthonormal,
+    /// A guessed direction first, then random ones, orthonormalised; the
+    /// step is the exact projection of the gradient onto their span
+    /// ([`param_grad::weights_guided`]).
+    Guided,
+}
+
+/// How one gradient of the parameters is estimated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EstimatorSettings {
+    /// Which estimator.
+    pub estimator: Estimator,
+    /// Dual lanes per forward pass (1, 2, 4, 8 or 16); `fwd-rand` draws this
+    /// many latent directions.
+    pub lanes: usize,
+    /// Differentiate the latent (forward estimators; reverse mode always gives both parts).
+    pub latent: bool,
+    /// `fwd-rand`: how its random directions are drawn.
+    pub directions: Directions,
+    /// Forward-mode directions for the decoder weights (0 leaves them out).
+    pub weight_directions: usize,
+    /// `fwd-full`: how those directions are chosen.
+    pub weight_mode: WeightDirections,
+    /// `rev-sub`: pixels differentiated.
+    pub subset_pixels: usize,
+    /// `rev-sub`: photon paths differentiated.
+    pub subset_paths: usize,
+}
+
+impl Default for EstimatorSettings {
+    fn default() -> Self {
+        EstimatorSettings {
+            estimator: Estimator::FwdFull,
+            lanes: 16,
+            latent: true,
+            directions: Directions::Gaussian,
+            weight_directions: 8,
+            weight_mode: WeightDirections::Guided,
+            subset_pixels: 1000,
+            subset_paths: 5000,
+        }
+    }
+}
+
+/// Some entries of a gradient: `values[i]` is the derivative with respect
+/// to parameter `indices[i]`. Empty when the part was left out.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Entries {
+    /// Parameter indices.
+    pub indices: Vec<usize>,
+    /// Derivatives, one per index.
+    pub values: Vec<f64>,
+}
+
+impl Entries {
+    /// Every entry of a dense gradient, in order.
+    pub fn dense(values: Vec<f64>) -> Self {
+        Entries { indices: (0..values.len()).collect(), values }
+    }
+
+    /// The dense gradient over `n` parameters (zero where no entry is given), or `None` if empty.
+    pub fn to_dense(&self, n: usize) -> Option<Vec<f64>> {
+        if self.indices.is_empty() {
+            return None;
+        }
+        let mut g = vec![0.0; n];
+        self.indices.iter().zip(&self.values).for_each(|(&i, &v)| g[i] = v);
+        Some(g)
+    }
+}
+
+/// One estimate of `(dL/dz, dL/dw)`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ParamGradient {
+    /// With respect to the latent.
+    pub latent: Entries,
+    /// With respect to the decoder weights.
+    pub weights: Entries,
+}
+
+/// The gradient of `level`'s image loss with respect to `model`'s latent
+/// and weights on the frozen estimator, by `settings`. `update` is the
+/// training update's number (coordinate mode takes the weights from
+/// `update * weight_directions` on); `rng` supplies every random draw.
+pub fn parameter_gradient(
+    level: &Level,
+    model: &Model,
+    frozen: &Frozen,
+    settings: &EstimatorSettings,
+    update: usize,
+    rng: &mut Rng,
+) -> Result<ParamGradient> {
+    let s = settings;
+    let k = s.weight_directions;
+    let lanes = s.lanes;
+    let dense = |g: Result<Vec<f64>>| g.map(Entries::dense);
+    let (latent, weights) = match s.estimator {
+        Estimator::RevFull | Estimator::RevSub => {
+            let subset = match s.estimator {
+                Estimator::RevSub => {
+                    Subset { pixels: Some(s.subset_pixels), paths: Some(s.subset_paths), seed: rng.below(u64::MAX) }
+                }
+                _ => Subset::full(),
+            };
+            let (dz, dw) = param_grad::reverse(level, model, frozen, subset);
+            (Entries::dense(dz), Entries::dense(dw))
+        }
+        Estimator::FwdFull => {
+            let latent = if s.latent {
+                dense(param_grad::latent_exact(level, model, frozen, lanes))?
+            } else {
+                Entries::default()
+            };
+            let weights = match (k, s.weight_mode) {
+                (0, _) => Entries::default(),
+                (_, WeightDirections::Coordinates) => {
+                    let n = model.w.len();
+                    let first = update * k.min(n) % n.max(1);
+                    let (indices, values) = param_grad::weights_coordinates(level, model, frozen, k, lanes, first)?;
+                    Entries { indices, values }
+                }
+                (_, WeightDirections::Orthonormal) => {
+                    dense(param_grad::weights_random(level, model, frozen, k, Directions::Orthonormal, lanes, rng))?
+                }
+                (_, WeightDirections::Guided) => {
+                    dense(param_grad::weights_guided(level, model, frozen, k, lanes, rng))?
+                }
+            };
+            (latent, weights)
+        }
+        Estimator::FwdRand => {
+            let latent = if s.latent {
+                dense(param_grad::latent_random(level, model, frozen, lanes, s.directions, rng))?
+            } else {
+                Entries::default()
+            };
+            let weights = match k {
+                0 => Entries::default(),
+                _ => dense(param_grad::weights_random(level, model, frozen, k, s.directions, lanes, rng))?,
+            };
+            (latent, weights)
+        }
+    };
+    Ok(ParamGradient { latent, weights })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recon::param_grad::tests::tiny;
+
+    #[test]
+    fn exact_forward_and_reverse_agree_and_coordinates_cycle() {
+        let (level, model, scene) = tiny();
+        let frozen = Frozen::new(&scene, Some(&level.support));
+        let mut rng = Rng::from_seed(0);
+        let rev = EstimatorSettings { estimator: Estimator::RevFull, ..EstimatorSettings::default() };
+        let exact = parameter_gradient(&level, &model, &frozen, &rev, 0, &mut rng).unwrap();
+        let coords = EstimatorSettings {
+            lanes: 4,
+            weight_directions: 4,
+            weight_mode: WeightDirections::Coordinates,
+            ..EstimatorSettings::default()
+        };
+        let fwd = parameter_gradient(&level, &model, &frozen, &coords, 3, &mut rng).unwrap();
+        // Update 3 differentiates weights 12..16; both parts match reverse mode up to rounding.
+        assert_eq!(fwd.weights.indices, vec![12, 13, 14, 15]);
+        let close = |a: &[f64], b: &[f64]| {
+            let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-8 * scale)
+        };
+        assert!(close(&fwd.latent.values, &exact.latent.values));
+        assert!(close(&fwd.weights.values, &exact.weights.values[12..16]));
+        // Leaving the latent out leaves it empty.
+        let weights_only = EstimatorSettings { latent: false, ..coords };
+        let g = parameter_gradient(&level, &model, &frozen, &weights_only, 0, &mut rng).unwrap();
+        assert!(g.latent.indices.is_empty() && g.latent.to_dense(64).is_none());
+        assert_eq!(g.weights.indices, vec![0, 1, 2, 3]);
+    }
+}
