@@ -5,7 +5,10 @@ use crate::error::{Error, Result};
 use serde_json::Value;
 use std::path::Path;
 
-/// The current git revision (with `-dirty` if the tree has changes), or "unknown".
+/// The current git revision, with `-dirty` if tracked files outside
+/// `results/` have changes, or "unknown". Results are what a run writes
+/// (and rewrites as it goes), not the code that produced them, so they do
+/// not count.
 pub fn git_revision() -> String {
     let run = |args: &[&str]| {
         std::process::Command::new("git")
@@ -17,7 +20,8 @@ pub fn git_revision() -> String {
     };
     match run(&["rev-parse", "--short=12", "HEAD"]) {
         Some(rev) => {
-            let dirty = run(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+            let dirty = run(&["status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results"])
+                .is_some_and(|s| !s.is_empty());
             if dirty {
                 format!("{rev}-dirty")
             } else {
