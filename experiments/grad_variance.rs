@@ -19,21 +19,20 @@ use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::stats::{median, EstimateStats};
 use dualphoton::grad::forward::Directions;
-use dualphoton::io::manifest::{peak_memory_mib, reset_peak_memory, write_manifest};
+use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
+use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use dualphoton::model::Model;
-use dualphoton::recon::estimator::Estimator::{FwdFull, FwdRand, RevFull, RevSub};
-use dualphoton::recon::estimator::{parameter_gradient, EstimatorSettings, ParamGradient};
+use dualphoton::recon::estimator::Estimator::{FwdRand, RevFull, RevSub};
+use dualphoton::recon::estimator::EstimatorSettings;
+use dualphoton::recon::grad_study::{forward_gradient_theory, sample_estimators};
 use dualphoton::recon::level::Level;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::recon::train::{train, TrainSettings};
-use dualphoton::render::frozen::Frozen;
-use dualphoton::rng::{Purpose, Rng};
 use dualphoton::scene::rig;
 use rayon::current_num_threads as num_threads;
-use serde::{Deserialize, Serialize, Serializer};
-use std::fmt::Write as _;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -91,47 +90,30 @@ struct Row {
     part: String,
     method: String,
     n: usize,
-    #[serde(serialize_with = "e6")]
+    #[serde(serialize_with = "fmt::e6")]
     rel_variance: f64,
-    #[serde(serialize_with = "e6")]
+    #[serde(serialize_with = "fmt::e6")]
     bias: f64,
-    #[serde(serialize_with = "e6", rename = "bias_noise_floor")]
+    #[serde(serialize_with = "fmt::e6", rename = "bias_noise_floor")]
     bias_floor: f64,
-    #[serde(serialize_with = "e6")]
+    #[serde(serialize_with = "fmt::e6")]
     rel_mse: f64,
-    #[serde(serialize_with = "f6")]
+    #[serde(serialize_with = "fmt::f6")]
     cosine_mean: f64,
-    #[serde(serialize_with = "f6")]
+    #[serde(serialize_with = "fmt::f6")]
     cosine_of_mean: f64,
-    #[serde(serialize_with = "e6")]
+    #[serde(serialize_with = "fmt::e6")]
     estimator_noise: f64,
-    #[serde(serialize_with = "opt4")]
+    #[serde(serialize_with = "fmt::opt_f4")]
     theory: Option<f64>,
-    #[serde(serialize_with = "f4")]
+    #[serde(serialize_with = "fmt::f4")]
     seconds: f64,
-    #[serde(serialize_with = "f4")]
+    #[serde(serialize_with = "fmt::f4")]
     primal_seconds: f64,
-    #[serde(serialize_with = "f1")]
+    #[serde(serialize_with = "fmt::f1")]
     peak_mib: f64,
-    #[serde(serialize_with = "e6")]
+    #[serde(serialize_with = "fmt::e6")]
     efficiency: f64,
-}
-
-/// The CSV's number formats (each column keeps the precision it always had).
-macro_rules! formats {
-    ($($name:ident $fmt:literal),*) => {$(
-        fn $name<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
-            s.collect_str(&format_args!($fmt, v))
-        }
-    )*};
-}
-formats!(e6 "{:.6e}", f6 "{:.6}", f4 "{:.4}", f1 "{:.1}");
-
-fn opt4<S: Serializer>(v: &Option<f64>, s: S) -> std::result::Result<S::Ok, S::Error> {
-    match v {
-        Some(v) => f4(v, s),
-        None => s.serialize_none(),
-    }
 }
 
 /// The settings compared (with the paper's subset second), by label; each
@@ -161,36 +143,9 @@ fn methods(px: usize, paths: usize) -> Vec<(String, EstimatorSettings)> {
     m
 }
 
-/// The forward-gradient theory's added noise `E|g_hat - g|^2 / |g|^2` over `n` parameters.
-fn theory(s: &EstimatorSettings, n: usize) -> Option<f64> {
-    let k = (if s.latent { s.lanes } else { s.weight_directions }) as f64;
-    match (s.estimator, s.directions) {
-        (FwdRand, Directions::Gaussian) => Some((n as f64 + 1.0) / k),
-        (FwdRand, Directions::Orthonormal) => Some(n as f64 / k - 1.0),
-        (FwdFull, _) if s.latent && s.weight_directions == 0 => Some(0.0),
-        _ => None,
-    }
-}
-
 /// Every (point, part) pair, in the order of the tables and plots.
 fn panels() -> impl Iterator<Item = (&'static str, &'static str)> {
     ["initial", "midway"].into_iter().flat_map(|point| PARTS.map(|part| (point, part)))
-}
-
-/// Per-seed estimates of one method at one point.
-#[derive(Default)]
-struct Samples {
-    /// Estimates of each of [`PARTS`] (none where the method leaves it out).
-    parts: [Vec<Vec<f64>>; 2],
-    seconds: Vec<f64>,
-    peak_mib: f64,
-}
-
-impl Samples {
-    fn push(&mut self, g: &ParamGradient, model: &Model) {
-        self.parts[0].extend(g.latent.to_dense(model.z.len()));
-        self.parts[1].extend(g.weights.to_dense(model.w.len()));
-    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -199,7 +154,7 @@ fn main() -> std::process::ExitCode {
 
 fn run(mut args: Args) -> Result<()> {
     if args.replot {
-        return plots(&args.out, &read_rows(&args.out.join("variance.csv"))?);
+        return plots(&args.out, &read_rows::<Row>(&args.out.join("variance.csv"))?);
     }
     if args.smoke {
         (args.res, args.seeds, args.reference_seeds, args.midway) = (16, 3, 2, 2);
@@ -242,9 +197,7 @@ fn run(mut args: Args) -> Result<()> {
     }
 
     let wall_s = started.elapsed().as_secs_f64();
-    let mut csv = csv::Writer::from_path(args.out.join("variance.csv")).map_err(|e| Error(e.to_string()))?;
-    rows.iter().try_for_each(|r| csv.serialize(r)).map_err(|e| Error(format!("variance.csv: {e}")))?;
-    csv.flush()?;
+    write_rows(&args.out.join("variance.csv"), &rows)?;
     let (photons, spp) = (scene.render.photons, scene.render.spp);
     let md = summary(&args, &rows, photons, spp, wall_s);
     std::fs::write(args.out.join("summary.md"), &md)?;
@@ -263,54 +216,23 @@ fn study_point(
     methods: &[(String, EstimatorSettings)],
 ) -> Result<Vec<Row>> {
     let level = Level::full(problem, &model.mask);
-    let decoded = model.density(&problem.scene.density);
-    let render = &problem.scene.render;
-
-    // High-sample reference: rev-full at more photons and samples, averaged over seeds.
-    let mut reference = Samples::default();
-    let rev_full = EstimatorSettings { estimator: RevFull, ..Default::default() };
-    for r in 0..args.reference_seeds {
-        let f = args.reference_factor;
-        let seed = 1_000_000 + args.seed * 1000 + r as u64;
-        let s = level.scene_at(&decoded, render.photons * f as u64, render.spp * f, seed);
-        let frozen = Frozen::new(&s, Some(&level.support));
-        reference.push(&parameter_gradient(&level, model, &frozen, &rev_full, 0, &mut Rng::from_seed(0))?, model);
-        eprintln!("{point}: reference {}/{} done", r + 1, args.reference_seeds);
-    }
-
-    let mut samples: Vec<Samples> = methods.iter().map(|_| Samples::default()).collect();
-    let mut primal = vec![];
-    for s in 0..args.seeds {
-        let t = Instant::now();
-        let seed = args.seed * 1000 + s as u64;
-        let sc = level.scene_at(&decoded, render.photons, render.spp, seed);
-        let frozen = Frozen::new(&sc, Some(&level.support));
-        primal.push(t.elapsed().as_secs_f64());
-        for (i, ((_, settings), smp)) in methods.iter().zip(&mut samples).enumerate() {
-            let mut rng = Rng::new(seed, Purpose::Gradient, 7_000 + i as u64);
-            reset_peak_memory();
-            let t = Instant::now();
-            let g = parameter_gradient(&level, model, &frozen, settings, 0, &mut rng)?;
-            smp.seconds.push(t.elapsed().as_secs_f64());
-            smp.peak_mib = smp.peak_mib.max(peak_memory_mib());
-            smp.push(&g, model);
-        }
-        eprint!("\r{point}: seed {}/{}   ", s + 1, args.seeds);
-    }
+    let settings: Vec<EstimatorSettings> = methods.iter().map(|m| m.1).collect();
+    let reference = (args.reference_seeds, args.reference_factor);
+    let mut progress = |s: &str| eprint!("\r{point}: {s}   ");
+    let study = sample_estimators(&level, model, &settings, args.seeds, reference, args.seed, &mut progress)?;
     eprintln!();
 
-    let primal_seconds = median(&primal);
     // `rev-full` on each seed's frozen paths: the exact gradient the others estimate.
     let exact = methods
         .iter()
         .position(|m| m.1.estimator == RevFull)
-        .map(|i| &samples[i])
+        .map(|i| &study.samples[i])
         .ok_or_else(|| Error::new("the methods must include rev-full"))?;
     let mut rows = vec![];
-    for ((method, settings), smp) in methods.iter().zip(&samples) {
-        for (p, part) in PARTS.iter().enumerate().filter(|(p, _)| !smp.parts[*p].is_empty()) {
-            let st = EstimateStats::of(&smp.parts[p], &exact.parts[p], &reference.parts[p]);
-            let seconds = median(&smp.seconds);
+    for ((method, settings), smp) in methods.iter().zip(&study.samples) {
+        for (p, part) in PARTS.iter().enumerate().filter(|(p, _)| !smp.part(*p).is_empty()) {
+            let st = EstimateStats::of(smp.part(p), exact.part(p), study.reference.part(p));
+            let (seconds, primal_seconds) = (median(&smp.seconds), study.primal_seconds);
             rows.push(Row {
                 point: point.into(),
                 part: part.to_string(),
@@ -323,7 +245,7 @@ fn study_point(
                 cosine_mean: st.cosine_mean,
                 cosine_of_mean: st.cosine_of_mean,
                 estimator_noise: st.estimator_noise,
-                theory: theory(settings, st.n),
+                theory: forward_gradient_theory(settings, st.n),
                 seconds,
                 primal_seconds,
                 peak_mib: smp.peak_mib,
@@ -357,41 +279,42 @@ fn summary(args: &Args, rows: &[Row], photons: u64, spp: u32, wall_s: f64) -> St
     for (point, part) in panels() {
         let sel: Vec<&Row> = rows.iter().filter(|r| r.point == point && r.part == part).collect();
         let Some(first) = sel.first() else { continue };
-        let _ = writeln!(
-            md,
-            "\n## {point}, {} (n = {}; primal render {:.2} s)\n\n\
-             | method | rel. var. | bias | floor | rel. MSE | cos | cos(mean) | own noise | theory | s | peak MiB | efficiency |\n\
-             |---|---|---|---|---|---|---|---|---|---|---|---|",
-            part,
-            first.n,
-            first.primal_seconds
+        md += &format!("\n## {point}, {part} (n = {}; primal render {:.2} s)\n\n", first.n, first.primal_seconds);
+        let header = [
+            "method",
+            "rel. var.",
+            "bias",
+            "floor",
+            "rel. MSE",
+            "cos",
+            "cos(mean)",
+            "own noise",
+            "theory",
+            "s",
+            "peak MiB",
+            "efficiency",
+        ];
+        md += &markdown_table(
+            &header,
+            sel.iter().map(|r| {
+                vec![
+                    r.method.clone(),
+                    format!("{:.3e}", r.rel_variance),
+                    format!("{:.3}", r.bias),
+                    format!("{:.3}", r.bias_floor),
+                    format!("{:.3e}", r.rel_mse),
+                    format!("{:.3}", r.cosine_mean),
+                    format!("{:.3}", r.cosine_of_mean),
+                    format!("{:.3e}", r.estimator_noise),
+                    r.theory.map_or(String::new(), |t| format!("{t:.3e}")),
+                    format!("{:.2}", r.seconds),
+                    format!("{:.0}", r.peak_mib),
+                    format!("{:.3e}", r.efficiency),
+                ]
+            }),
         );
-        for r in sel {
-            let theory = r.theory.map_or(String::new(), |t| format!("{t:.3e}"));
-            let _ = writeln!(
-                md,
-                "| {} | {:.3e} | {:.3} | {:.3} | {:.3e} | {:.3} | {:.3} | {:.3e} | {theory} | {:.2} | {:.0} | {:.3e} |",
-                r.method,
-                r.rel_variance,
-                r.bias,
-                r.bias_floor,
-                r.rel_mse,
-                r.cosine_mean,
-                r.cosine_of_mean,
-                r.estimator_noise,
-                r.seconds,
-                r.peak_mib,
-                r.efficiency
-            );
-        }
     }
     md
-}
-
-/// The rows of a `variance.csv` this binary wrote.
-fn read_rows(path: &Path) -> Result<Vec<Row>> {
-    let bad = |e: csv::Error| Error(format!("{}: {e}", path.display()));
-    csv::Reader::from_path(path).map_err(bad)?.deserialize().collect::<std::result::Result<_, _>>().map_err(bad)
 }
 
 /// Relative variance against cost per point and part (each estimator

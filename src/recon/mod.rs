@@ -2,11 +2,12 @@
 //! images, the paper's setup and numbers), the visual hull, the resolution
 //! levels of coarse-to-fine training, the gradients of the loss with respect
 //! to the model's parameters and the one estimator vocabulary that chooses
-//! among them, Adam, the training loop, its progress and ETA, a whole
+//! among them, many-seed samples of those estimators for studying them, Adam, the training loop, its progress and ETA, a whole
 //! reconstruction and the files it is written to.
 
 pub mod adam;
 pub mod estimator;
+pub mod grad_study;
 pub mod hull;
 pub mod level;
 pub mod outputs;
