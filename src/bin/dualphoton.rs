@@ -1,12 +1,14 @@
-//! The `dualphoton` command line: `render`, `grad`, `fit` and `scene` (see `--help`).
+//! The `dualphoton` command line: `render`, `grad`, `fit`, `judge` and `scene` (see `--help`).
 
 use clap::{Parser, Subcommand, ValueEnum};
 use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
+use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
 use dualphoton::grad::forward::Directions;
 use dualphoton::grad::loss::mse;
 use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES};
 use dualphoton::image::Image;
+use dualphoton::io::rows::write_rows;
 use dualphoton::io::{npy, png};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::problem::Problem;
@@ -16,6 +18,7 @@ use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::{file, rig, Scene};
+use dualphoton::volume::Grid;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -120,7 +123,8 @@ enum Command {
     },
     /// Reconstruct a density from images: visual hull, 64-d latent + small
     /// decoder, Adam on the image MSE. Writes density_estimated.npy,
-    /// density_initial.npy, hull.npy, log.csv, fig5_loss.svg into OUT, and
+    /// density_initial.npy, hull.npy, log.csv, fig5_loss.svg, fit_quality.csv
+    /// (the estimate against your images, as `judge --images`) into OUT, and
     /// camera 2 during training (fig6_camera2.png/.svg) and the first
     /// held-out camera (fig8_held_out.png/.svg) where those cameras exist.
     Fit {
@@ -148,6 +152,38 @@ enum Command {
         /// Seed of training.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+    /// Judge how well a density explains images: per camera, the relative RMSE
+    /// at 1x1, 2x2 and 4x4 pixel blocks of its high-quality render against the
+    /// truth's (--truth) or against images (--images), next to the noise floor.
+    Judge {
+        /// Scene file: cameras, lights, medium (its density is not used).
+        #[arg(long)]
+        scene: PathBuf,
+        /// The density to judge (.npy, the scene's grid shape).
+        #[arg(long)]
+        estimate: PathBuf,
+        /// The true density (.npy): truth and estimate are rendered with the same seed.
+        #[arg(long, conflicts_with = "images", required_unless_present = "images")]
+        truth: Option<PathBuf>,
+        /// Or images of every camera (DIR/cam0.npy, ...) when no truth is known.
+        #[arg(long)]
+        images: Option<PathBuf>,
+        /// Cameras held out from training (the last N of the scene), labelled so.
+        #[arg(long, default_value_t = 0)]
+        held_out: usize,
+        /// Photons per render.
+        #[arg(long, default_value_t = 1_000_000)]
+        photons: u64,
+        /// Samples per pixel per render.
+        #[arg(long, default_value_t = 8)]
+        spp: u32,
+        /// Write the table as CSV here too.
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -249,12 +285,50 @@ fn run(command: Command) -> Result<()> {
             })?;
             eprintln!();
             outputs.finish(&r, &problem)?;
+            let judge = FitQualitySettings::default();
+            eprintln!("judging the fit against your images ({} photons, {} spp) ...", judge.photons, judge.spp);
+            let fit = fit_quality(&scene, &r.estimated, FitTarget::Images(&all), targets.len(), &judge)?;
+            write_rows(&out.join("fit_quality.csv"), &fit)?;
+            eprint!("{}", fit_quality_markdown(&fit));
             eprintln!(
                 "fit: {} hull voxels, final loss {:.4e} -> {}",
                 r.model.mask.iter().filter(|&&m| m).count(),
                 r.log.last().map_or(0.0, |l| l.train_loss),
                 out.display()
             );
+            Ok(())
+        }
+        Command::Judge { scene, estimate, truth, images, held_out, photons, spp, out, threads } => {
+            set_threads(threads)?;
+            let scene = file::load(&scene)?;
+            file::check_photons(photons, scene.medium.max_order, "--photons")?;
+            if spp == 0 {
+                return Err(Error::new("--spp: must be at least 1"));
+            }
+            if held_out >= scene.cameras.len() {
+                return Err(Error(format!(
+                    "--held-out: {held_out} leaves no training camera of {}",
+                    scene.cameras.len()
+                )));
+            }
+            let estimate = read_density(&estimate, &scene, "--estimate")?;
+            let settings = FitQualitySettings { photons, spp, ..Default::default() };
+            let n_train = scene.cameras.len() - held_out;
+            let rows = match (truth, images) {
+                (Some(t), _) => {
+                    let truth = read_density(&t, &scene, "--truth")?;
+                    fit_quality(&scene, &estimate, FitTarget::Truth(&truth), n_train, &settings)?
+                }
+                (None, Some(dir)) => {
+                    let images = read_targets(&dir, &scene)?;
+                    fit_quality(&scene, &estimate, FitTarget::Images(&images), n_train, &settings)?
+                }
+                (None, None) => return Err(Error::new("judge: give --truth or --images")),
+            };
+            print!("{}", fit_quality_markdown(&rows));
+            if let Some(out) = out {
+                write_rows(&out, &rows)?;
+            }
             Ok(())
         }
         Command::Scene { preset: Preset::Paper, res, seed, from_scalarflow, out } => {
@@ -298,6 +372,25 @@ fn parse_voxels(text: &str, shape: [usize; 3]) -> Result<Vec<usize>> {
             Ok((idx[0] * shape[1] + idx[1]) * shape[2] + idx[2])
         })
         .collect()
+}
+
+/// A density grid from a `.npy` file, checked against the scene's grid shape.
+fn read_density(path: &Path, scene: &Scene, what: &str) -> Result<Grid<f64>> {
+    let a = npy::read(path, what)?;
+    let shape = scene.density.shape;
+    if a.shape != shape {
+        return Err(Error(format!(
+            "{what}: {} has shape {:?}, the scene's grid is {shape:?}",
+            path.display(),
+            a.shape
+        )));
+    }
+    if a.data.iter().any(|v| !v.is_finite() || *v < 0.0) {
+        return Err(Error(format!("{what}: {} has NaN, Inf or negative values", path.display())));
+    }
+    let mut grid = scene.density.clone();
+    grid.data = a.data;
+    Ok(grid)
 }
 
 /// The target images DIR/cam0.npy, ... one per camera, checked against the cameras' sizes.
