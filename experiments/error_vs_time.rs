@@ -20,6 +20,7 @@ use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::write_rows;
+use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::recon::train::{train, LogRow, TrainSettings};
@@ -132,7 +133,7 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
         let mut model = initial_model(&scene, targets, args.seed)?;
         let settings = TrainSettings {
             iterations: usize::MAX,
-            estimator,
+            gradient: EstimatorSettings { estimator, ..Default::default() },
             seed: args.seed,
             time_budget: Some(args.budget),
             ..Default::default()

@@ -9,7 +9,7 @@ use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1, rel_rmse};
 use dualphoton::io::figures::{table1_chart, Table1Bars};
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::rows::write_rows;
-use dualphoton::recon::estimator::{Estimator, WeightDirections};
+use dualphoton::recon::estimator::{Estimator, EstimatorSettings, WeightDirections};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::paper::{self, TABLE1};
 use dualphoton::recon::problem::{paper_problem, target_render, PaperProblem, Problem};
@@ -52,6 +52,13 @@ struct Args {
     /// Adam step of the decoder weights.
     #[arg(long, default_value_t = 0.01)]
     lr_weights: f64,
+    /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
+    #[arg(long, default_value_t = 1.0)]
+    lr_final: f64,
+    /// Take each update's image residual from a second, independent render (removes the squared loss's
+    /// noise bias; one more primal render per update).
+    #[arg(long)]
+    decorrelate: bool,
     /// Photons per training update.
     #[arg(long, default_value_t = 50_000)]
     photons: u64,
@@ -125,13 +132,18 @@ fn run(mut args: Args) -> Result<()> {
 
     let train = TrainSettings {
         iterations: args.iterations,
-        estimator,
-        lanes: args.lanes,
-        weight_directions: args.weight_directions,
-        weight_mode,
+        gradient: EstimatorSettings {
+            estimator,
+            lanes: args.lanes,
+            weight_directions: args.weight_directions,
+            weight_mode,
+            ..Default::default()
+        },
         lr_latent: args.lr_latent,
         lr_weights: args.lr_weights,
         sparsity: args.sparsity,
+        lr_final: args.lr_final,
+        decorrelate: args.decorrelate,
         photons: args.photons,
         spp: args.spp,
         seed: args.seed,

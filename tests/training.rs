@@ -5,6 +5,7 @@
 use dualphoton::grad::loss::mse;
 use dualphoton::grad::Estimator;
 use dualphoton::model::Model;
+use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::level::Level;
 use dualphoton::recon::problem::{paper_problem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
@@ -112,7 +113,7 @@ fn a_short_training_lowers_the_loss() {
     let before = fixed_loss(&problem, &model);
     let settings = TrainSettings {
         iterations: ITERATIONS,
-        estimator: Estimator::RevFull,
+        gradient: EstimatorSettings { estimator: Estimator::RevFull, ..Default::default() },
         photons: 5_000,
         coarse_fraction: 0.0,
         seed: 1,

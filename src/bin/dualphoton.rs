@@ -10,6 +10,7 @@ use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES
 use dualphoton::image::Image;
 use dualphoton::io::rows::write_rows;
 use dualphoton::io::{npy, png};
+use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::problem::Problem;
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
@@ -275,7 +276,8 @@ fn run(command: Command) -> Result<()> {
                 )));
             }
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
-            let train = TrainSettings { iterations, estimator, photons, seed, ..TrainSettings::default() };
+            let gradient = EstimatorSettings { estimator, ..EstimatorSettings::default() };
+            let train = TrainSettings { iterations, gradient, photons, seed, ..TrainSettings::default() };
             let settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
             let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
             let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;

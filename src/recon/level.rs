@@ -8,6 +8,7 @@ use crate::scene::Scene;
 use crate::volume::Grid;
 
 /// One resolution the training loop renders at.
+#[derive(Clone)]
 pub struct Level {
     /// Scene at this resolution (its density is replaced every update).
     pub scene: Scene,
@@ -79,6 +80,18 @@ impl Level {
         scene.render.spp = spp;
         scene.render.seed = seed;
         scene
+    }
+
+    /// This level with targets shifted so that the residual of `images` is
+    /// that of `residual_images`: `T' = T + images - residual_images`, hence
+    /// `images - T' = residual_images - T`. The squared-loss gradient on the
+    /// render of `images` then takes its residual from an independent render.
+    pub fn with_residual_from(&self, images: &[Image], residual_images: &[Image]) -> Level {
+        let mut level = self.clone();
+        for ((t, i), r) in level.targets.iter_mut().zip(images).zip(residual_images) {
+            t.data.iter_mut().zip(&i.data).zip(&r.data).for_each(|((t, i), r)| *t += i - r);
+        }
+        level
     }
 
     /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.

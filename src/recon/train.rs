@@ -8,13 +8,13 @@
 //! - `fwd-full` (default): the latent's gradient is exact, from 64
 //!   coordinate directions through decoder and renderer in chunks of K dual
 //!   lanes; the decoder weights get `weight_directions` directional
-//!   derivatives per update ([`WeightDirections`]).
+//!   derivatives per update ([`super::estimator::WeightDirections`]).
 //! - `fwd-rand`: K random directions for the latent and for the weights.
 //! - `rev-full` / `rev-sub`: reverse mode through the renderer (the paper's
 //!   approximate learning for `rev-sub`), then the decoder's own
 //!   vector-Jacobian product: exact (or unbiased) for latent and weights.
 
-use super::estimator::{parameter_gradient, Entries, Estimator, EstimatorSettings, WeightDirections};
+use super::estimator::{parameter_gradient, Entries, EstimatorSettings};
 use super::level::Level;
 use super::problem::Problem;
 use super::progress::coarse_updates;
@@ -25,6 +25,7 @@ use crate::image::Image;
 use crate::model::Model;
 use crate::recon::adam::Adam;
 use crate::render::frozen::Frozen;
+use crate::render::render_photon;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
 use std::time::Instant;
@@ -34,14 +35,8 @@ use std::time::Instant;
 pub struct TrainSettings {
     /// Adam updates.
     pub iterations: usize,
-    /// Gradient estimator.
-    pub estimator: Estimator,
-    /// Dual lanes per forward pass (1, 2, 4, 8 or 16).
-    pub lanes: usize,
-    /// Directions for the decoder weights per update (forward estimators; 0 freezes the weights).
-    pub weight_directions: usize,
-    /// How those directions are chosen.
-    pub weight_mode: WeightDirections,
+    /// How each update's gradient is estimated.
+    pub gradient: EstimatorSettings,
     /// Adam step for the latent.
     pub lr_latent: f64,
     /// Adam step for the decoder weights.
@@ -50,10 +45,6 @@ pub struct TrainSettings {
     pub photons: u64,
     /// Camera samples per pixel per update.
     pub spp: u32,
-    /// `rev-sub`: pixels and photon paths differentiated per update.
-    pub subset_pixels: usize,
-    /// `rev-sub`: photon paths differentiated per update.
-    pub subset_paths: usize,
     /// Seed of everything random in training.
     pub seed: u64,
     /// Share of the updates made at half resolution (grid and images pooled
@@ -62,6 +53,17 @@ pub struct TrainSettings {
     /// Stop once this many seconds have passed (at most `iterations`
     /// updates); `coarse_fraction` then applies to the time, not the updates.
     pub time_budget: Option<f64>,
+    /// Learning rates fall exponentially over the full-resolution updates
+    /// to this fraction of their starting values (1: constant), so that the
+    /// last updates average the render noise instead of following it.
+    pub lr_final: f64,
+    /// Take each update's image residual from a second, independent render
+    /// (another seed) rather than from the render differentiated. The
+    /// squared loss of a noisy render is biased, `E[(I - T)^2] = (E[I] - T)^2
+    /// + Var I`, and its gradient on one render carries the `Var I` term; with
+    /// independent residual and derivative the gradient is that of `(E[I] - T)^2`.
+    /// Costs one more primal render per update.
+    pub decorrelate: bool,
     /// Weight of a sparsity prior `sparsity * mean density over the hull`
     /// added to the image loss (0: none, the paper's loss). Its gradient is
     /// exact for every estimator (the decoder's vector-Jacobian product).
@@ -72,38 +74,23 @@ impl Default for TrainSettings {
     fn default() -> Self {
         TrainSettings {
             iterations: 250,
-            estimator: Estimator::FwdFull,
-            lanes: 16,
-            weight_directions: 8,
-            weight_mode: WeightDirections::Guided,
+            gradient: EstimatorSettings::default(),
             lr_latent: 0.05,
             lr_weights: 0.01,
             photons: 50_000,
             spp: 2,
-            subset_pixels: 1000,
-            subset_paths: 5000,
             seed: 0,
             coarse_fraction: 0.8,
             time_budget: None,
+            lr_final: 1.0,
+            decorrelate: false,
             sparsity: 0.0,
         }
     }
 }
 
-impl TrainSettings {
-    /// The gradient estimator these settings train with.
-    pub fn estimator_settings(&self) -> EstimatorSettings {
-        EstimatorSettings {
-            estimator: self.estimator,
-            lanes: self.lanes,
-            weight_directions: self.weight_directions,
-            weight_mode: self.weight_mode,
-            subset_pixels: self.subset_pixels,
-            subset_paths: self.subset_paths,
-            ..EstimatorSettings::default()
-        }
-    }
-}
+/// Flips the seed of an update's second render ([`TrainSettings::decorrelate`]).
+const DECORRELATE_SEED: u64 = 0x5EC0_0D00_0000_0000;
 
 /// One line of the training log.
 #[derive(Clone, Debug, Default)]
@@ -141,7 +128,7 @@ pub fn train(
     let coarse = if settings.coarse_fraction > 0.0 { Level::half(problem, &model.mask) } else { None };
     let coarse_updates = coarse_updates(settings, coarse.is_some());
     let mut rng = Rng::new(settings.seed, Purpose::Gradient, 1_000_000);
-    let estimator = settings.estimator_settings();
+    let estimator = settings.gradient;
     for it in 0..settings.iterations {
         let elapsed = start.elapsed().as_secs_f64();
         let coarse_now = match settings.time_budget {
@@ -153,13 +140,29 @@ pub fn train(
             Some(c) if coarse_now => c,
             _ => &fine,
         };
+        let fine_progress = match settings.time_budget {
+            _ if coarse_now => 0.0,
+            Some(budget) => (elapsed - settings.coarse_fraction * budget) / (budget * (1.0 - settings.coarse_fraction)),
+            None => {
+                (it - coarse_updates.min(it)) as f64
+                    / (settings.iterations - coarse_updates.min(settings.iterations)).max(1) as f64
+            }
+        };
+        let decay = settings.lr_final.powf(fine_progress.clamp(0.0, 1.0));
+        (adam_z.lr, adam_w.lr) = (settings.lr_latent * decay, settings.lr_weights * decay);
         let decoded = model.density(&problem.scene.density);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
         let scene = level.scene_at(&decoded, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
         let row = log_row(it, problem, level, model, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
-        let mut g = parameter_gradient(level, model, &frozen, &estimator, it, &mut rng)?;
+        let mut g = if settings.decorrelate {
+            let second = level.scene_at(&decoded, settings.photons, settings.spp, seed ^ DECORRELATE_SEED);
+            let level = level.with_residual_from(&frozen.images, &render_photon(&second).images);
+            parameter_gradient(&level, model, &frozen, &estimator, it, &mut rng)?
+        } else {
+            parameter_gradient(level, model, &frozen, &estimator, it, &mut rng)?
+        };
         if settings.sparsity > 0.0 {
             add_sparsity_gradient(model, settings.sparsity, &mut g.latent, &mut g.weights);
         }
