@@ -144,3 +144,28 @@ pub fn halve(im: &Image) -> Image {
     }
     Image { width: w, height: h, data }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::image::Image;
+    use crate::recon::param_grad::tests::tiny;
+
+    fn map(t: &Image, f: impl Fn(f64) -> f64) -> Image {
+        Image { width: t.width, height: t.height, data: t.data.iter().map(|&v| f(v)).collect() }
+    }
+
+    #[test]
+    fn shifted_targets_give_the_second_renders_residual() {
+        let (level, _, _) = tiny();
+        let images = level.targets.iter().map(|t| map(t, |v| 2.0 * v + 0.5)).collect::<Vec<_>>();
+        let second = level.targets.iter().map(|t| map(t, |v| v + 0.25)).collect::<Vec<_>>();
+        let shifted = level.with_residual_from(&images, &second);
+        for c in 0..images.len() {
+            for p in 0..images[c].data.len() {
+                let residual = images[c].data[p] - shifted.targets[c].data[p];
+                let wanted = second[c].data[p] - level.targets[c].data[p];
+                assert!((residual - wanted).abs() < 1e-12);
+            }
+        }
+    }
+}

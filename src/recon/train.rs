@@ -18,7 +18,7 @@ use super::estimator::{parameter_gradient, Entries, EstimatorSettings};
 use super::level::Level;
 use super::problem::Problem;
 use super::progress::coarse_updates;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::eval::metrics::{rel_l1, rel_rmse};
 use crate::grad::loss::mse;
 use crate::image::Image;
@@ -121,6 +121,9 @@ pub fn train(
     settings: &TrainSettings,
     observe: &mut dyn FnMut(&LogRow, &Model, &[Image]),
 ) -> Result<()> {
+    if !(settings.lr_final.is_finite() && settings.lr_final > 0.0) {
+        return Err(Error(format!("lr_final: {} must be finite and > 0", settings.lr_final)));
+    }
     let start = Instant::now();
     let mut adam_z = Adam::new(model.z.len(), settings.lr_latent);
     let mut adam_w = Adam::new(model.w.len(), settings.lr_weights);
