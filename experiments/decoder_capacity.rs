@@ -4,12 +4,18 @@
 //! vector-Jacobian product): an upper bound on what training through the
 //! renderer can reach with this model.
 //!
-//! Writes `results/decoder_capacity/{capacity.csv, summary.md, manifest.json}`.
+//! The fitted density is then rendered and judged like a reconstruction
+//! (`fit_quality.csv`): the image misfit that the model alone leaves.
+//!
+//! Writes `results/decoder_capacity/{capacity.csv, fit_quality.csv,
+//! density_fitted.npy, summary.md, manifest.json}`.
 
 use clap::Parser;
 use dualphoton::error::Result;
+use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
 use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1};
 use dualphoton::io::manifest::write_manifest;
+use dualphoton::io::npy;
 use dualphoton::io::rows::write_rows;
 use dualphoton::recon::adam::Adam;
 use dualphoton::recon::problem::paper_problem;
@@ -108,6 +114,18 @@ fn run(mut args: Args) -> Result<()> {
     }
     eprintln!();
     write_rows(&args.out.join("capacity.csv"), &rows)?;
+    // The fitted density seen by the cameras: how well the best the model can
+    // hold explains the images, the ceiling of a fit through the renderer.
+    let fitted = model.density(&problem.scene.density);
+    npy::write_f32(&args.out.join("density_fitted.npy"), &fitted.shape, &fitted.data)?;
+    let judge = if args.smoke {
+        FitQualitySettings { photons: 20_000, spp: 2, ..Default::default() }
+    } else {
+        FitQualitySettings::default()
+    };
+    eprintln!("judging the fitted density's images ({} photons, {} spp) ...", judge.photons, judge.spp);
+    let fit = fit_quality(&problem.scene, &fitted, FitTarget::Truth(&problem.truth), rig::HELD_OUT_CAMERA, &judge)?;
+    write_rows(&args.out.join("fit_quality.csv"), &fit)?;
     let t = hull_stats(truth, &mask);
     let last = rows.last().expect("at least one row");
     let mut md = format!(
@@ -124,6 +142,14 @@ fn run(mut args: Args) -> Result<()> {
     let _ = writeln!(md, "| Pearson r | {:.3} | 1 |", last.pearson_r);
     let _ = writeln!(md, "| mean density | {:.4} | {:.4} |", last.mean, t.mean);
     let _ = writeln!(md, "| max density | {:.3} | {:.3} |", last.max, t.max);
+    let _ = write!(
+        md,
+        "\nThe fitted density's images against the truth's (both at {} photons, {} spp, same seed; in brackets \
+         the truth's two-seed noise floor), `fit_quality.csv`:\n\n{}",
+        judge.photons,
+        judge.spp,
+        fit_quality_markdown(&fit)
+    );
     let _ = writeln!(
         md,
         "\nRegenerate: `cargo run --release --bin decoder_capacity` ({:.0} s).",
