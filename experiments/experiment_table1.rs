@@ -14,6 +14,7 @@ use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::paper::{self, TABLE1};
 use dualphoton::recon::problem::{paper_problem, target_render, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::refine::RefineSettings;
 use dualphoton::recon::train::TrainSettings;
 use dualphoton::scene::{file, rig};
 use serde::Serialize;
@@ -59,6 +60,16 @@ struct Args {
     /// noise bias; one more primal render per update).
     #[arg(long)]
     decorrelate: bool,
+    /// Per-voxel refinement updates after training (0: none): each hull voxel's density times its own factor,
+    /// fitted by reverse mode.
+    #[arg(long, default_value_t = 0)]
+    refine: usize,
+    /// Adam step of the refinement's log-factors.
+    #[arg(long, default_value_t = 0.02)]
+    refine_lr: f64,
+    /// Penalty on the mean squared log-factor of the refinement.
+    #[arg(long, default_value_t = 0.0)]
+    refine_penalty: f64,
     /// Photons per training update.
     #[arg(long, default_value_t = 50_000)]
     photons: u64,
@@ -150,7 +161,16 @@ fn run(mut args: Args) -> Result<()> {
         coarse_fraction: args.coarse_fraction,
         ..TrainSettings::default()
     };
-    let settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
+    let mut settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
+    settings.refine = RefineSettings {
+        updates: args.refine,
+        lr: args.refine_lr,
+        penalty: args.refine_penalty,
+        photons: args.photons,
+        spp: args.spp,
+        decorrelate: args.decorrelate,
+        seed: args.seed,
+    };
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
     let mut outputs = Outputs::create(&args.out)?;
     let r = reconstruct(&problem, &settings, &mut |p| {

@@ -16,4 +16,5 @@ pub mod param_grad;
 pub mod problem;
 pub mod progress;
 pub mod reconstruct;
+pub mod refine;
 pub mod train;

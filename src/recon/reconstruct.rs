@@ -7,6 +7,7 @@ use super::level::Level;
 use super::paper;
 use super::problem::Problem;
 use super::progress::{coarse_updates, fine_over_coarse, Eta, Progress};
+use super::refine::{refine, RefineSettings};
 use super::train::{train, LogRow, TrainSettings};
 use crate::error::{Error, Result};
 use crate::image::Image;
@@ -42,6 +43,8 @@ pub struct Reconstruction {
 pub struct ReconstructSettings {
     /// Training.
     pub train: TrainSettings,
+    /// The per-voxel refinement after training (none by default).
+    pub refine: RefineSettings,
     /// Photons of the final renders.
     pub final_photons: u64,
     /// Samples per pixel of the final renders.
@@ -69,6 +72,7 @@ impl ReconstructSettings {
             init_seed: train.seed,
             snapshot_camera: paper::FIG6_CAMERA,
             snapshot_iterations: paper::FIG6_ITERATIONS.to_vec(),
+            refine: RefineSettings { seed: train.seed, ..RefineSettings::default() },
             train,
         }
     }
@@ -109,13 +113,14 @@ pub fn reconstruct(
     let initial = model.density(&scene.density);
 
     let train_settings = &settings.train;
-    let total = train_settings.iterations;
-    let mut eta = eta_for(problem, &model, train_settings);
+    let total = train_settings.iterations + settings.refine.updates;
+    let mut eta = eta_for(problem, &model, train_settings, total);
     let mut log = vec![];
     let mut snapshots = vec![];
     let camera = settings.snapshot_camera;
     let truth_width = targets.iter().chain(problem.held_out).nth(camera).map(|im| im.width);
-    let last = total.saturating_sub(1);
+    let last = train_settings.iterations.saturating_sub(1);
+    let train_started = Instant::now();
     train(problem, &mut model, train_settings, &mut |row, _, images| {
         let coarse = images.first().is_some_and(|im| im.width < scene.cameras[0].width);
         let eta_s = eta.observe(row.iteration, row.wall_s, coarse);
@@ -126,7 +131,17 @@ pub fn reconstruct(
         progress(&Progress { row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
         log.push(row.clone());
     })?;
-    let estimated = model.density(&scene.density);
+    let train_s = train_started.elapsed().as_secs_f64();
+    let estimated = if settings.refine.updates > 0 {
+        refine(problem, &model, &settings.refine, train_settings.iterations, &mut |row| {
+            let row = LogRow { wall_s: row.wall_s + train_s, ..row.clone() };
+            let eta_s = eta.observe(row.iteration, row.wall_s, false);
+            progress(&Progress { row: &row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
+            log.push(row);
+        })?
+    } else {
+        model.density(&scene.density)
+    };
     let mut final_scene = scene.clone();
     final_scene.density = estimated.clone();
     final_scene.render.photons = settings.final_photons;
@@ -138,12 +153,12 @@ pub fn reconstruct(
 
 /// The ETA of `settings` on `problem`; times one primal render per level
 /// only when training will switch from half to full resolution.
-fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings) -> Eta {
+fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings, total: usize) -> Eta {
     let has_half = settings.coarse_fraction > 0.0 && Level::half(problem, &model.mask).is_some();
     let coarse = coarse_updates(settings, has_half);
     let switches = settings.time_budget.is_none() && coarse > 0 && coarse < settings.iterations;
     let ratio = if switches { fine_over_coarse(problem, model, settings).unwrap_or(1.0) } else { 1.0 };
-    Eta::new(settings.iterations, coarse, ratio, settings.time_budget)
+    Eta::new(total, coarse, ratio, settings.time_budget)
 }
 
 /// `im` enlarged by pixel replication to `width` (a coarse update's image next to full-size ones).

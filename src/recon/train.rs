@@ -157,7 +157,7 @@ pub fn train(
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
         let scene = level.scene_at(&decoded, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
-        let row = log_row(it, problem, level, model, &decoded, &frozen, start.elapsed().as_secs_f64());
+        let row = log_row(it, problem, level, &model.mask, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
         let mut g = if settings.decorrelate {
             let second = level.scene_at(&decoded, settings.photons, settings.spp, seed ^ DECORRELATE_SEED);
@@ -175,11 +175,13 @@ pub fn train(
     Ok(())
 }
 
-fn log_row(
+/// The log row of update `it`: the losses of `frozen`'s images at `level`,
+/// the density `decoded` against the truth over the hull `mask`.
+pub(super) fn log_row(
     it: usize,
     problem: &Problem,
     level: &Level,
-    model: &Model,
+    mask: &[bool],
     decoded: &Grid<f64>,
     frozen: &Frozen,
     wall_s: f64,
@@ -195,13 +197,13 @@ fn log_row(
         (mse(&images[n..], &level.held_out), rel_rmse(&ours, &theirs))
     };
     let d = &decoded.data;
-    let hull: Vec<f64> = d.iter().zip(&model.mask).filter(|(_, &m)| m).map(|(v, _)| *v).collect();
+    let hull: Vec<f64> = d.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| *v).collect();
     LogRow {
         iteration: it,
         train_loss,
         held_out_loss,
         held_out_rel_rmse,
-        density_rel_l1: problem.truth.map_or(f64::NAN, |t| rel_l1(d, &t.data, &model.mask)),
+        density_rel_l1: problem.truth.map_or(f64::NAN, |t| rel_l1(d, &t.data, mask)),
         mean_density: hull.iter().sum::<f64>() / hull.len().max(1) as f64,
         max_density: hull.iter().fold(0.0, |a: f64, &b| a.max(b)),
         wall_s,

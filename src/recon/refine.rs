@@ -1,0 +1,94 @@
+//! A final refinement after training: every hull voxel gets its own factor,
+//! `density = decoded * exp(s)`, and Adam fits the log-factors `s` to the
+//! training images by reverse mode (the renderer's exact `dL/d density`;
+//! no decoder in between, so nothing limits how closely the images can be
+//! explained), with a penalty `penalty * mean(s^2)` that keeps the density
+//! near the decoder's. Voxels where the decoder gives 0 stay 0.
+//!
+//! It exists because the decoder, trained through a noisy renderer, fits
+//! its own training images only slowly; the refinement closes the rest of
+//! the gap at the cost of the smoothness the decoder provides.
+
+use super::level::Level;
+use super::problem::Problem;
+use super::train::{log_row, LogRow};
+use crate::error::{Error, Result};
+use crate::grad::reverse::{reverse_gradient, Subset};
+use crate::model::Model;
+use crate::recon::adam::Adam;
+use crate::render::frozen::Frozen;
+use crate::render::render_photon;
+use crate::volume::Grid;
+use std::time::Instant;
+
+/// How the refinement runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RefineSettings {
+    /// Adam updates (0: no refinement).
+    pub updates: usize,
+    /// Adam step of the log-factors.
+    pub lr: f64,
+    /// Weight of `mean(s^2)` over the hull voxels, added to the image loss.
+    pub penalty: f64,
+    /// Photons per update.
+    pub photons: u64,
+    /// Camera samples per pixel per update.
+    pub spp: u32,
+    /// Take each update's residual from a second, independent render
+    /// (as [`super::train::TrainSettings::decorrelate`]).
+    pub decorrelate: bool,
+    /// Seed of the updates' renders.
+    pub seed: u64,
+}
+
+impl Default for RefineSettings {
+    fn default() -> Self {
+        RefineSettings { updates: 0, lr: 0.02, penalty: 0.0, photons: 50_000, spp: 2, decorrelate: false, seed: 0 }
+    }
+}
+
+/// Refines `model`'s density on `problem`'s training images; `first` numbers
+/// the first update (after training's), `observe` sees every log row. Returns the refined density.
+pub fn refine(
+    problem: &Problem,
+    model: &Model,
+    settings: &RefineSettings,
+    first: usize,
+    observe: &mut dyn FnMut(&LogRow),
+) -> Result<Grid<f64>> {
+    if !(settings.lr.is_finite() && settings.lr > 0.0 && settings.penalty.is_finite() && settings.penalty >= 0.0) {
+        return Err(Error(format!("refine: lr {} must be > 0 and penalty {} >= 0", settings.lr, settings.penalty)));
+    }
+    let start = Instant::now();
+    let base = model.density(&problem.scene.density);
+    let level = Level::full(problem, &model.mask);
+    let hull: Vec<usize> = (0..base.data.len()).filter(|&i| model.mask[i] && base.data[i] > 0.0).collect();
+    let mut s = vec![0.0; hull.len()];
+    let mut adam = Adam::new(hull.len(), settings.lr);
+    let density_of = |s: &[f64]| {
+        let mut d = base.clone();
+        hull.iter().zip(s).for_each(|(&i, &si)| d.data[i] *= si.exp());
+        d
+    };
+    for u in 0..settings.updates {
+        let density = density_of(&s);
+        let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
+        let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
+        let frozen = Frozen::new(&scene, Some(&level.support));
+        observe(&log_row(first + u, problem, &level, &model.mask, &density, &frozen, start.elapsed().as_secs_f64()));
+        let g = if settings.decorrelate {
+            let second = render_photon(&level.scene_at(&density, settings.photons, settings.spp, seed ^ 1)).images;
+            reverse_gradient(&frozen, &level.with_residual_from(&frozen.images, &second).targets, Subset::full()).grad
+        } else {
+            reverse_gradient(&frozen, &level.targets, Subset::full()).grad
+        };
+        let n = hull.len().max(1) as f64;
+        let gs: Vec<f64> =
+            hull.iter().zip(&s).map(|(&i, &si)| g[i] * density.data[i] + 2.0 * settings.penalty * si / n).collect();
+        adam.step(&mut s, &gs);
+    }
+    Ok(density_of(&s))
+}
+
+/// Sets the refinement's render seeds apart from training's.
+const REFINE_SEED: u64 = 0x0EF1_4E00_0000_0000;
