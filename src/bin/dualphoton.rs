@@ -14,6 +14,7 @@ use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::problem::Problem;
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::refine::RefineSettings;
 use dualphoton::recon::train::TrainSettings;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
@@ -150,6 +151,21 @@ enum Command {
         /// Photons per update.
         #[arg(long, default_value_t = 50_000)]
         photons: u64,
+        /// Share of the updates made at half resolution (coarse to fine).
+        #[arg(long, default_value_t = 0.8)]
+        coarse_fraction: f64,
+        /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
+        #[arg(long, default_value_t = 1.0)]
+        lr_final: f64,
+        /// Take each update's image residual from a second, independent render (no noise bias; costs one more render).
+        #[arg(long)]
+        decorrelate: bool,
+        /// Per-voxel refinement updates after training (0: none; reverse mode).
+        #[arg(long, default_value_t = 0)]
+        refine: usize,
+        /// Penalty on the refinement's mean squared log-factor.
+        #[arg(long, default_value_t = 0.0)]
+        refine_penalty: f64,
         /// Seed of training.
         #[arg(long, default_value_t = 0)]
         seed: u64,
@@ -264,7 +280,22 @@ fn run(command: Command) -> Result<()> {
             let targets = read_targets(&target, &scene)?;
             grad_cmd(&scene, &targets, &opts, listed.as_deref(), &out)
         }
-        Command::Fit { scene, images, out, held_out, estimator, iterations, photons, seed, threads } => {
+        Command::Fit {
+            scene,
+            images,
+            out,
+            held_out,
+            estimator,
+            iterations,
+            photons,
+            coarse_fraction,
+            lr_final,
+            decorrelate,
+            refine,
+            refine_penalty,
+            seed,
+            threads,
+        } => {
             set_threads(threads)?;
             let scene = file::load(&scene)?;
             file::check_photons(photons, scene.medium.max_order, "--photons")?;
@@ -277,8 +308,28 @@ fn run(command: Command) -> Result<()> {
             }
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
             let gradient = EstimatorSettings { estimator, ..EstimatorSettings::default() };
-            let train = TrainSettings { iterations, gradient, photons, seed, ..TrainSettings::default() };
-            let settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
+            if !(0.0..=1.0).contains(&coarse_fraction) {
+                return Err(Error(format!("--coarse-fraction: {coarse_fraction} must be in 0..=1")));
+            }
+            let train = TrainSettings {
+                iterations,
+                gradient,
+                photons,
+                seed,
+                coarse_fraction,
+                lr_final,
+                decorrelate,
+                ..TrainSettings::default()
+            };
+            let mut settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
+            settings.refine = RefineSettings {
+                updates: refine,
+                penalty: refine_penalty,
+                photons,
+                decorrelate,
+                seed,
+                ..RefineSettings::default()
+            };
             let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
             let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;
             let r = reconstruct(&problem, &settings, &mut |p| {
