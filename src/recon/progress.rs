@@ -79,47 +79,68 @@ pub fn fine_over_coarse(problem: &Problem, model: &Model, settings: &TrainSettin
     Some((t_fine / t_coarse.max(1e-9)).clamp(1.0, 16.0))
 }
 
+/// What an update is, for its cost.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// A training update at half resolution.
+    Coarse,
+    /// A training update at full resolution.
+    Fine,
+    /// A per-voxel refinement update ([`super::refine`]).
+    Refine,
+}
+
 /// Predicts the seconds of training left from the updates timed so far.
 #[derive(Clone, Debug)]
 pub struct Eta {
-    total: usize,
+    /// Training updates, then refinement updates.
+    train: usize,
+    refine: usize,
     coarse_updates: usize,
     fine_over_coarse: f64,
     time_budget: Option<f64>,
-    /// Seconds and count of the timed updates: [half resolution, full resolution].
-    timed: [(f64, usize); 2],
-    /// Training seconds and level (true: half) of the previous row.
-    last: Option<(f64, bool)>,
+    /// Seconds and count of the timed updates of each [`Phase`].
+    timed: [(f64, usize); 3],
+    /// Seconds and phase of the previous row.
+    last: Option<(f64, Phase)>,
 }
 
 impl Eta {
-    /// An ETA for `total` updates, the first `coarse_updates` at half
-    /// resolution, a full-resolution update costing about
-    /// `fine_over_coarse` half-resolution ones until one has been timed;
-    /// with a `time_budget` (seconds) training stops there at the latest.
-    pub fn new(total: usize, coarse_updates: usize, fine_over_coarse: f64, time_budget: Option<f64>) -> Eta {
-        Eta { total, coarse_updates, fine_over_coarse, time_budget, timed: [(0.0, 0); 2], last: None }
+    /// An ETA for `train` training updates, the first `coarse_updates` at
+    /// half resolution, a full-resolution update costing about
+    /// `fine_over_coarse` half-resolution ones until one has been timed,
+    /// then `refine` refinement updates (predicted at a full-resolution
+    /// update's cost until one has been timed); with a `time_budget`
+    /// (seconds) training stops there at the latest.
+    pub fn new(
+        train: usize,
+        coarse_updates: usize,
+        refine: usize,
+        fine_over_coarse: f64,
+        time_budget: Option<f64>,
+    ) -> Eta {
+        Eta { train, refine, coarse_updates, fine_over_coarse, time_budget, timed: [(0.0, 0); 3], last: None }
     }
 
-    /// Takes log row `iteration`, measured `wall_s` seconds into training
-    /// before an update at half resolution if `coarse`, and returns the
-    /// predicted seconds left: this update and the later ones.
-    pub fn observe(&mut self, iteration: usize, wall_s: f64, coarse: bool) -> Option<f64> {
-        if let Some((t, was_coarse)) = self.last {
-            let slot = &mut self.timed[usize::from(!was_coarse)];
+    /// Takes log row `iteration` (refinement rows count on after training's),
+    /// measured `wall_s` seconds in before an update of `phase`, and returns
+    /// the predicted seconds left: this update and the later ones.
+    pub fn observe(&mut self, iteration: usize, wall_s: f64, phase: Phase) -> Option<f64> {
+        if let Some((t, was)) = self.last {
+            let slot = &mut self.timed[was as usize];
             slot.0 += (wall_s - t).max(0.0);
             slot.1 += 1;
         }
-        self.last = Some((wall_s, coarse));
-        let left = self.total.saturating_sub(iteration);
-        let coarse_left = self.coarse_updates.saturating_sub(iteration + 1) + usize::from(coarse && left > 0);
-        let fine_left = left - coarse_left.min(left);
+        self.last = Some((wall_s, phase));
+        let left_in = |from: usize, to: usize| to.saturating_sub(from.max(iteration));
+        let coarse = self.coarse_updates.min(self.train);
+        let counts = [left_in(0, coarse), left_in(coarse, self.train), left_in(self.train, self.train + self.refine)];
         let mean = |(s, n): (f64, usize)| (n > 0).then(|| s / n as f64);
-        let (c, f) = (mean(self.timed[0]), mean(self.timed[1]));
-        let cost_coarse = c.or(f.map(|f| f / self.fine_over_coarse));
+        let [c, f, r] = self.timed.map(mean);
         let cost_fine = f.or(c.map(|c| c * self.fine_over_coarse));
+        let costs = [c.or(f.map(|f| f / self.fine_over_coarse)), cost_fine, r.or(cost_fine)];
         let need = |n: usize, cost: Option<f64>| if n == 0 { Some(0.0) } else { cost.map(|c| c * n as f64) };
-        let eta = need(coarse_left, cost_coarse).zip(need(fine_left, cost_fine)).map(|(a, b)| a + b);
+        let eta = (0..3).try_fold(0.0, |sum, p| need(counts[p], costs[p]).map(|x| sum + x));
         match self.time_budget {
             Some(budget) => {
                 let left = (budget - wall_s).max(0.0);
@@ -137,29 +158,40 @@ mod tests {
     #[test]
     fn the_eta_counts_the_dearer_full_resolution_updates() {
         // 10 updates, 8 at half resolution costing 1 s, full ones predicted at 6 s.
-        let mut eta = Eta::new(10, 8, 6.0, None);
-        assert_eq!(eta.observe(0, 0.0, true), None);
-        let after_one = eta.observe(1, 1.0, true).unwrap();
+        let mut eta = Eta::new(10, 8, 0, 6.0, None);
+        assert_eq!(eta.observe(0, 0.0, Phase::Coarse), None);
+        let after_one = eta.observe(1, 1.0, Phase::Coarse).unwrap();
         assert!((after_one - (7.0 + 2.0 * 6.0)).abs() < 1e-12, "{after_one}");
         for it in 2..8 {
-            eta.observe(it, it as f64, true);
+            eta.observe(it, it as f64, Phase::Coarse);
         }
         // The first full update is still predicted, then measured (here 5 s).
-        assert!((eta.observe(8, 8.0, false).unwrap() - 12.0).abs() < 1e-12);
-        assert!((eta.observe(9, 13.0, false).unwrap() - 5.0).abs() < 1e-12);
+        assert!((eta.observe(8, 8.0, Phase::Fine).unwrap() - 12.0).abs() < 1e-12);
+        assert!((eta.observe(9, 13.0, Phase::Fine).unwrap() - 5.0).abs() < 1e-12);
     }
 
     #[test]
     fn without_a_half_level_every_update_costs_the_same() {
-        let mut eta = Eta::new(4, 0, 6.0, None);
-        eta.observe(0, 0.0, false);
-        assert!((eta.observe(1, 2.0, false).unwrap() - 6.0).abs() < 1e-12);
+        let mut eta = Eta::new(4, 0, 0, 6.0, None);
+        eta.observe(0, 0.0, Phase::Fine);
+        assert!((eta.observe(1, 2.0, Phase::Fine).unwrap() - 6.0).abs() < 1e-12);
     }
 
     #[test]
     fn a_time_budget_caps_the_eta() {
-        let mut eta = Eta::new(100, 0, 1.0, Some(10.0));
-        assert_eq!(eta.observe(0, 0.0, false), Some(10.0));
-        assert!((eta.observe(1, 4.0, false).unwrap() - 6.0).abs() < 1e-12);
+        let mut eta = Eta::new(100, 0, 0, 1.0, Some(10.0));
+        assert_eq!(eta.observe(0, 0.0, Phase::Fine), Some(10.0));
+        assert!((eta.observe(1, 4.0, Phase::Fine).unwrap() - 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn refinement_updates_are_timed_on_their_own() {
+        // 2 full updates of 4 s, then 3 refinement updates of 1 s.
+        let mut eta = Eta::new(2, 0, 3, 6.0, None);
+        eta.observe(0, 0.0, Phase::Fine);
+        // Refinement predicted at a full update's cost until timed.
+        assert!((eta.observe(1, 4.0, Phase::Fine).unwrap() - 16.0).abs() < 1e-12);
+        assert!((eta.observe(2, 8.0, Phase::Refine).unwrap() - 12.0).abs() < 1e-12);
+        assert!((eta.observe(3, 9.0, Phase::Refine).unwrap() - 2.0).abs() < 1e-12);
     }
 }

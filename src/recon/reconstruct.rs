@@ -6,7 +6,7 @@
 use super::level::Level;
 use super::paper;
 use super::problem::Problem;
-use super::progress::{coarse_updates, fine_over_coarse, Eta, Progress};
+use super::progress::{coarse_updates, fine_over_coarse, Eta, Phase, Progress};
 use super::refine::{refine, RefineSettings};
 use super::train::{train, LogRow, TrainSettings};
 use crate::error::{Error, Result};
@@ -114,7 +114,7 @@ pub fn reconstruct(
 
     let train_settings = &settings.train;
     let total = train_settings.iterations + settings.refine.updates;
-    let mut eta = eta_for(problem, &model, train_settings, total);
+    let mut eta = eta_for(problem, &model, train_settings, settings.refine.updates);
     let mut log = vec![];
     let mut snapshots = vec![];
     let camera = settings.snapshot_camera;
@@ -123,7 +123,7 @@ pub fn reconstruct(
     let train_started = Instant::now();
     train(problem, &mut model, train_settings, &mut |row, _, images| {
         let coarse = images.first().is_some_and(|im| im.width < scene.cameras[0].width);
-        let eta_s = eta.observe(row.iteration, row.wall_s, coarse);
+        let eta_s = eta.observe(row.iteration, row.wall_s, if coarse { Phase::Coarse } else { Phase::Fine });
         let wanted = settings.snapshot_iterations.contains(&row.iteration) || row.iteration == last;
         if let (true, Some(image), Some(width)) = (wanted, images.get(camera), truth_width) {
             snapshots.push((row.iteration, upscale(image, width)));
@@ -135,7 +135,7 @@ pub fn reconstruct(
     let estimated = if settings.refine.updates > 0 {
         refine(problem, &model, &settings.refine, train_settings.iterations, &mut |row| {
             let row = LogRow { wall_s: row.wall_s + train_s, ..row.clone() };
-            let eta_s = eta.observe(row.iteration, row.wall_s, false);
+            let eta_s = eta.observe(row.iteration, row.wall_s, Phase::Refine);
             progress(&Progress { row: &row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
             log.push(row);
         })?
@@ -153,12 +153,12 @@ pub fn reconstruct(
 
 /// The ETA of `settings` on `problem`; times one primal render per level
 /// only when training will switch from half to full resolution.
-fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings, total: usize) -> Eta {
+fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings, refine: usize) -> Eta {
     let has_half = settings.coarse_fraction > 0.0 && Level::half(problem, &model.mask).is_some();
     let coarse = coarse_updates(settings, has_half);
     let switches = settings.time_budget.is_none() && coarse > 0 && coarse < settings.iterations;
     let ratio = if switches { fine_over_coarse(problem, model, settings).unwrap_or(1.0) } else { 1.0 };
-    Eta::new(total, coarse, ratio, settings.time_budget)
+    Eta::new(settings.iterations, coarse, refine, ratio, settings.time_budget)
 }
 
 /// `im` enlarged by pixel replication to `width` (a coarse update's image next to full-size ones).
