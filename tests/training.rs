@@ -36,6 +36,7 @@ fn experiment_table1_smoke_run_writes_everything() {
         "table1.csv",
         "table1.md",
         "table1.svg",
+        "fit_quality.csv",
         "fig5_loss.svg",
         "fig6_camera2.png",
         "fig6_camera2.svg",
@@ -63,7 +64,7 @@ fn experiment_table1_smoke_run_writes_everything() {
         assert!(manifest.get(key).is_some(), "manifest lacks {key}");
     }
     let log = std::fs::read_to_string(dir.join("log.csv")).unwrap();
-    assert_eq!(log.lines().count(), 4, "header + 3 iterations");
+    assert_eq!(log.lines().count(), 7, "header + 3 training + 3 refinement updates");
     assert!(!log.contains("NaN") && !log.contains("inf"), "{log}");
     for bin in [env!("CARGO_BIN_EXE_fig5"), env!("CARGO_BIN_EXE_fig7")] {
         let out = Command::new(bin).args(["--dir", dir.to_str().unwrap()]).output().unwrap();
@@ -202,14 +203,25 @@ fn fit_writes_its_log_arrays_and_figures() {
     };
     run(&["scene", "--res", "16", "--out", &scene]);
     run(&["render", "--scene", &json, "--out", &images, "--photons", "5000"]);
-    run(&["fit", "--scene", &json, "--images", &images, "--out", &fit, "--held-out", "1", "--iterations", "2"]);
-    let files =
-        ["log.csv", "density_estimated.npy", "hull.npy", "fig5_loss.svg", "fig6_camera2.svg", "fig8_held_out.svg"];
+    let fit_args = ["--out", &fit, "--held-out", "1", "--iterations", "2", "--refine", "3", "--judge-photons", "5000"];
+    run(&[&["fit", "--scene", &json, "--images", &images][..], &fit_args].concat());
+    let files = [
+        "log.csv",
+        "density_estimated.npy",
+        "hull.npy",
+        "fig5_loss.svg",
+        "fig6_camera2.svg",
+        "fig8_held_out.svg",
+        "fit_quality.csv",
+    ];
     for f in files {
         assert!(dir.join("fit").join(f).exists(), "{f} missing");
     }
     let log = std::fs::read_to_string(dir.join("fit/log.csv")).unwrap();
-    assert_eq!(log.lines().count(), 3, "header + 2 iterations: {log}");
+    assert_eq!(log.lines().count(), 6, "header + 2 training + 3 refinement updates: {log}");
+    let judged = std::fs::read_to_string(dir.join("fit/fit_quality.csv")).unwrap();
+    assert_eq!(judged.lines().count(), 1 + 5, "header + one row per camera: {judged}");
+    assert!(judged.contains(",held-out,"), "{judged}");
 }
 
 #[test]

@@ -161,11 +161,14 @@ enum Command {
         #[arg(long)]
         decorrelate: bool,
         /// Per-voxel refinement updates after training (0: none; reverse mode).
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 200)]
         refine: usize,
         /// Penalty on the refinement's mean squared log-factor.
         #[arg(long, default_value_t = 0.0)]
         refine_penalty: f64,
+        /// Photons of the renders that judge the fit (fit_quality.csv; 8 samples per pixel).
+        #[arg(long, default_value_t = 1_000_000)]
+        judge_photons: u64,
         /// Seed of training.
         #[arg(long, default_value_t = 0)]
         seed: u64,
@@ -293,6 +296,7 @@ fn run(command: Command) -> Result<()> {
             decorrelate,
             refine,
             refine_penalty,
+            judge_photons,
             seed,
             threads,
         } => {
@@ -338,7 +342,8 @@ fn run(command: Command) -> Result<()> {
             })?;
             eprintln!();
             outputs.finish(&r, &problem)?;
-            let judge = FitQualitySettings::default();
+            file::check_photons(judge_photons, scene.medium.max_order, "--judge-photons")?;
+            let judge = FitQualitySettings { photons: judge_photons, ..FitQualitySettings::default() };
             eprintln!("judging the fit against your images ({} photons, {} spp) ...", judge.photons, judge.spp);
             let fit = fit_quality(&scene, &r.estimated, FitTarget::Images(&all), targets.len(), &judge)?;
             write_rows(&out.join("fit_quality.csv"), &fit)?;
