@@ -25,7 +25,7 @@ use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use dualphoton::model::Model;
 use dualphoton::recon::estimator::Estimator::{FwdRand, RevFull, RevSub};
 use dualphoton::recon::estimator::EstimatorSettings;
-use dualphoton::recon::grad_study::{forward_gradient_theory, sample_estimators};
+use dualphoton::recon::grad_study::{compared_settings, forward_gradient_theory, sample_estimators};
 use dualphoton::recon::level::Level;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
@@ -116,33 +116,6 @@ struct Row {
     efficiency: f64,
 }
 
-/// The settings compared (with the paper's subset second), by label; each
-/// gives the latent's gradient, the weights' or (reverse mode) both.
-fn methods(px: usize, paths: usize) -> Vec<(String, EstimatorSettings)> {
-    use Directions::{Gaussian, Orthonormal};
-    let s = EstimatorSettings { weight_directions: 0, ..EstimatorSettings::default() };
-    let (sub, rand) = (EstimatorSettings { estimator: RevSub, ..s }, EstimatorSettings { estimator: FwdRand, ..s });
-    let kind = |d| if d == Gaussian { "gaussian" } else { "orthonormal" };
-    let mut m = vec![("rev-full".to_string(), EstimatorSettings { estimator: RevFull, ..s })];
-    for (p, q) in [(px / 4, paths / 4), (px, paths), (px * 4, paths * 4), (px * 16, paths * 16)] {
-        m.push((format!("rev-sub {p}px/{q}paths"), EstimatorSettings { subset_pixels: p, subset_paths: q, ..sub }));
-    }
-    m.push(("fwd-full".into(), s));
-    for (k, d) in [(1, Gaussian), (4, Gaussian), (8, Gaussian), (16, Gaussian), (4, Orthonormal), (16, Orthonormal)] {
-        m.push((format!("fwd-rand {} K={k}", kind(d)), EstimatorSettings { lanes: k, directions: d, ..rand }));
-    }
-    // The weights alone (guided is fwd-full's default weight mode).
-    for (k, d) in [(1, Gaussian), (16, Gaussian), (16, Orthonormal)] {
-        let w = EstimatorSettings { latent: false, weight_directions: k, lanes: 16.min(k), directions: d, ..rand };
-        m.push((format!("fwd-rand {} K={k}", kind(d)), w));
-    }
-    for k in [8, 16] {
-        let w = EstimatorSettings { latent: false, weight_directions: k, lanes: 16.min(k), ..s };
-        m.push((format!("fwd-guided K={k}"), w));
-    }
-    m
-}
-
 /// Every (point, part) pair, in the order of the tables and plots.
 fn panels() -> impl Iterator<Item = (&'static str, &'static str)> {
     ["initial", "midway"].into_iter().flat_map(|point| PARTS.map(|part| (point, part)))
@@ -190,7 +163,7 @@ fn run(mut args: Args) -> Result<()> {
     eprintln!();
 
     let photons = scene.render.photons as usize;
-    let methods = methods((1000 * photons / 300_000).max(4), (5000 * photons / 300_000).max(4));
+    let methods = compared_settings((1000 * photons / 300_000).max(4), (5000 * photons / 300_000).max(4));
     let mut rows = vec![];
     for (point, model) in [("initial", &initial), ("midway", &midway)] {
         rows.extend(study_point(&args, &problem, point, model, &methods)?);

@@ -96,6 +96,37 @@ pub fn sample_estimators(
     Ok(Study { samples, reference: refs, primal_seconds: median(&primal) })
 }
 
+/// The settings the gradient-variance study compares, by label: `rev-full`;
+/// `rev-sub` at 1/4, 1, 4 and 16 times `px` pixels and `paths` photon paths
+/// (the paper's subset second); `fwd-full` for the latent; `fwd-rand` with
+/// Gaussian and orthonormal directions; the weights alone by random and by
+/// guided directions. Each gives the latent's gradient, the weights' or
+/// (reverse mode) both.
+pub fn compared_settings(px: usize, paths: usize) -> Vec<(String, EstimatorSettings)> {
+    use Directions::{Gaussian, Orthonormal};
+    let s = EstimatorSettings { weight_directions: 0, ..EstimatorSettings::default() };
+    let (sub, rand) = (EstimatorSettings { estimator: Estimator::RevSub, ..s }, EstimatorSettings { estimator: Estimator::FwdRand, ..s });
+    let kind = |d| if d == Gaussian { "gaussian" } else { "orthonormal" };
+    let mut m = vec![("rev-full".to_string(), EstimatorSettings { estimator: Estimator::RevFull, ..s })];
+    for (p, q) in [(px / 4, paths / 4), (px, paths), (px * 4, paths * 4), (px * 16, paths * 16)] {
+        m.push((format!("rev-sub {p}px/{q}paths"), EstimatorSettings { subset_pixels: p, subset_paths: q, ..sub }));
+    }
+    m.push(("fwd-full".into(), s));
+    for (k, d) in [(1, Gaussian), (4, Gaussian), (8, Gaussian), (16, Gaussian), (4, Orthonormal), (16, Orthonormal)] {
+        m.push((format!("fwd-rand {} K={k}", kind(d)), EstimatorSettings { lanes: k, directions: d, ..rand }));
+    }
+    // The weights alone (guided is fwd-full's default weight mode).
+    for (k, d) in [(1, Gaussian), (16, Gaussian), (16, Orthonormal)] {
+        let w = EstimatorSettings { latent: false, weight_directions: k, lanes: 16.min(k), directions: d, ..rand };
+        m.push((format!("fwd-rand {} K={k}", kind(d)), w));
+    }
+    for k in [8, 16] {
+        let w = EstimatorSettings { latent: false, weight_directions: k, lanes: 16.min(k), ..s };
+        m.push((format!("fwd-guided K={k}"), w));
+    }
+    m
+}
+
 /// The forward-gradient theory's added noise `E|g_hat - g|^2 / |g|^2` over
 /// `n` parameters: `(n+1)/K` for Gaussian directions, `n/K - 1` for
 /// orthonormal ones, 0 for exact ones; `None` where it has no prediction.
