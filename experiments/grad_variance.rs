@@ -18,12 +18,11 @@
 use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::stats::{median, EstimateStats};
-use dualphoton::grad::forward::Directions;
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use dualphoton::model::Model;
-use dualphoton::recon::estimator::Estimator::{FwdRand, RevFull, RevSub};
+use dualphoton::recon::estimator::Estimator::RevFull;
 use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::grad_study::{compared_settings, forward_gradient_theory, sample_estimators};
 use dualphoton::recon::level::Level;

@@ -105,7 +105,10 @@ pub fn sample_estimators(
 pub fn compared_settings(px: usize, paths: usize) -> Vec<(String, EstimatorSettings)> {
     use Directions::{Gaussian, Orthonormal};
     let s = EstimatorSettings { weight_directions: 0, ..EstimatorSettings::default() };
-    let (sub, rand) = (EstimatorSettings { estimator: Estimator::RevSub, ..s }, EstimatorSettings { estimator: Estimator::FwdRand, ..s });
+    let (sub, rand) = (
+        EstimatorSettings { estimator: Estimator::RevSub, ..s },
+        EstimatorSettings { estimator: Estimator::FwdRand, ..s },
+    );
     let kind = |d| if d == Gaussian { "gaussian" } else { "orthonormal" };
     let mut m = vec![("rev-full".to_string(), EstimatorSettings { estimator: Estimator::RevFull, ..s })];
     for (p, q) in [(px / 4, paths / 4), (px, paths), (px * 4, paths * 4), (px * 16, paths * 16)] {
