@@ -46,16 +46,6 @@ impl fmt::Display for Progress<'_> {
     }
 }
 
-/// How many of the first updates [`super::train::train`] makes at half
-/// resolution for a fixed number of updates, given whether the problem has a
-/// half level at all ([`Level::half`]).
-pub fn coarse_updates(settings: &TrainSettings, has_half: bool) -> usize {
-    if !has_half || settings.coarse_fraction <= 0.0 {
-        return 0;
-    }
-    (settings.coarse_fraction.clamp(0.0, 1.0) * settings.iterations as f64).round() as usize
-}
-
 /// How many times longer one full-resolution primal render (photons and
 /// camera rays, as an update starts with) takes than a half-resolution one,
 /// timed once each at `model`'s density. The renders have their own seed:

@@ -6,9 +6,9 @@
 use super::level::Level;
 use super::paper;
 use super::problem::Problem;
-use super::progress::{coarse_updates, fine_over_coarse, Eta, Phase, Progress};
+use super::progress::{fine_over_coarse, Eta, Phase, Progress};
 use super::refine::{refine, RefineSettings};
-use super::train::{train, LogRow, TrainSettings};
+use super::train::{coarse_updates, train, LogRow, TrainSettings};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::model::Decoder;

@@ -17,7 +17,6 @@
 use super::estimator::{parameter_gradient, Entries, EstimatorSettings};
 use super::level::Level;
 use super::problem::Problem;
-use super::progress::coarse_updates;
 use crate::error::{Error, Result};
 use crate::eval::metrics::{rel_l1, rel_rmse};
 use crate::grad::loss::mse;
@@ -87,6 +86,16 @@ impl Default for TrainSettings {
             sparsity: 0.0,
         }
     }
+}
+
+/// How many of the first updates [`train`] makes at half
+/// resolution for a fixed number of updates, given whether the problem has a
+/// half level at all ([`Level::half`]).
+pub fn coarse_updates(settings: &TrainSettings, has_half: bool) -> usize {
+    if !has_half || settings.coarse_fraction <= 0.0 {
+        return 0;
+    }
+    (settings.coarse_fraction.clamp(0.0, 1.0) * settings.iterations as f64).round() as usize
 }
 
 /// Flips the seed of an update's second render ([`TrainSettings::decorrelate`]).
