@@ -4,6 +4,7 @@
 use super::problem::Problem;
 use crate::ad::Real;
 use crate::image::Image;
+use crate::render::render_photon;
 use crate::scene::Scene;
 use crate::volume::Grid;
 
@@ -92,6 +93,21 @@ impl Level {
             t.data.iter_mut().zip(&i.data).zip(&r.data).for_each(|((t, i), r)| *t += i - r);
         }
         level
+    }
+
+    /// This level with its residual taken from a second, independent render
+    /// of `decoded` (`photons`, `spp`, `seed`) rather than from `images`, the
+    /// render being differentiated ([`Level::with_residual_from`]).
+    pub fn with_independent_residual(
+        &self,
+        decoded: &Grid<f64>,
+        images: &[Image],
+        photons: u64,
+        spp: u32,
+        seed: u64,
+    ) -> Level {
+        let second = render_photon(&self.scene_at(decoded, photons, spp, seed)).images;
+        self.with_residual_from(images, &second)
     }
 
     /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.

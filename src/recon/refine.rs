@@ -17,7 +17,6 @@ use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::model::Model;
 use crate::recon::adam::Adam;
 use crate::render::frozen::Frozen;
-use crate::render::render_photon;
 use crate::volume::Grid;
 use std::time::Instant;
 
@@ -77,8 +76,9 @@ pub fn refine(
         let frozen = Frozen::new(&scene, Some(&level.support));
         observe(&log_row(first + u, problem, &level, &model.mask, &density, &frozen, start.elapsed().as_secs_f64()));
         let g = if settings.decorrelate {
-            let second = render_photon(&level.scene_at(&density, settings.photons, settings.spp, seed ^ 1)).images;
-            reverse_gradient(&frozen, &level.with_residual_from(&frozen.images, &second).targets, Subset::full()).grad
+            let (photons, spp) = (settings.photons, settings.spp);
+            let shifted = level.with_independent_residual(&density, &frozen.images, photons, spp, seed ^ 1);
+            reverse_gradient(&frozen, &shifted.targets, Subset::full()).grad
         } else {
             reverse_gradient(&frozen, &level.targets, Subset::full()).grad
         };

@@ -24,7 +24,6 @@ use crate::image::Image;
 use crate::model::Model;
 use crate::recon::adam::Adam;
 use crate::render::frozen::Frozen;
-use crate::render::render_photon;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
 use std::time::Instant;
@@ -169,8 +168,9 @@ pub fn train(
         let row = log_row(it, problem, level, &model.mask, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
         let mut g = if settings.decorrelate {
-            let second = level.scene_at(&decoded, settings.photons, settings.spp, seed ^ DECORRELATE_SEED);
-            let level = level.with_residual_from(&frozen.images, &render_photon(&second).images);
+            let (photons, spp) = (settings.photons, settings.spp);
+            let level =
+                level.with_independent_residual(&decoded, &frozen.images, photons, spp, seed ^ DECORRELATE_SEED);
             parameter_gradient(&level, model, &frozen, &estimator, it, &mut rng)?
         } else {
             parameter_gradient(level, model, &frozen, &estimator, it, &mut rng)?
