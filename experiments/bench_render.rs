@@ -69,6 +69,7 @@ struct TimingRow {
     stored_photons: usize,
     trace_s: f64,
     gather_s: f64,
+    shadows_s: f64,
     camera_s: f64,
     single_scattering_only_s: f64,
     total_s: f64,
@@ -127,6 +128,7 @@ fn run(mut args: Args) -> Result<()> {
             stored_photons: r.stored_photons,
             trace_s: median_of(&times, |t| t.trace),
             gather_s: median_of(&times, |t| t.gather),
+            shadows_s: median_of(&times, |t| t.shadows),
             camera_s: median_of(&times, |t| t.camera),
             single_scattering_only_s: median_of(&timed(&single_scene, args.repeats).1, |t| t.total),
             total_s: median_of(&times, |t| t.total),
@@ -137,7 +139,7 @@ fn run(mut args: Args) -> Result<()> {
         let _ = writeln!(
             summary,
             "## {res}^3, {res}x{res} images\n\n- reference: {spp} spp path tracing, block (4x4) noise {:.2} %\n\
-             - default render ({} photons, radius {:.1} voxels): total {:.3} s (median of {}; {} threads): tracing {:.3} s ({:.2} M photons/s), gathering {:.3} s, camera rays {:.3} s; single scattering alone {:.3} s\n\
+             - default render ({} photons, radius {:.1} voxels): total {:.3} s (median of {}; {} threads): tracing {:.3} s ({:.2} M photons/s), gathering {:.3} s, light-depth grids {:.3} s, camera rays {:.3} s; single scattering alone {:.3} s\n\
              - block relative RMSE against the reference (its noise removed): {:.2} %, image-sum difference {:+.2} %\n",
             100.0 * noise,
             row.photons,
@@ -148,6 +150,7 @@ fn run(mut args: Args) -> Result<()> {
             row.trace_s,
             row.photons_per_s / 1e6,
             row.gather_s,
+            row.shadows_s,
             row.camera_s,
             row.single_scattering_only_s,
             100.0 * row.block_rel_rmse,

@@ -18,6 +18,8 @@ pub enum Purpose {
     Scene = 4,
     /// Gradient estimators (direction and subset draws), indexed by step.
     Gradient = 5,
+    /// Shadow rays of the light-depth grids, indexed by light and voxel.
+    Shadow = 6,
 }
 
 /// A seeded generator of uniform numbers in [0, 1).

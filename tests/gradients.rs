@@ -11,17 +11,27 @@ use dualphoton::image::Image;
 use dualphoton::math::Vec3;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
-use dualphoton::scene::Scene;
+use dualphoton::scene::{Scene, Shadows};
 use num_dual::Dual64;
 
-/// The 10^3 two-light blob with a side camera added: two 6x6 cameras.
+/// The 10^3 two-light blob with a side camera added: two 6x6 cameras,
+/// the lights' transmittance from the light-depth grids.
 fn scene(max_order: u32) -> Scene {
+    scene_with(max_order, Shadows::Grid)
+}
+
+/// [`scene`] with the given shadows.
+fn scene_with(max_order: u32, shadows: Shadows) -> Scene {
     let mut s = two_light_blob(10, 0.6, max_order, 6);
     s.cameras.push(look_at_origin(Vec3::new(2.2, 0.3, 0.0), 6, 30.0));
     s.render.photons = 2000;
     s.render.seed = 3;
+    s.render.shadows = shadows;
     s
 }
+
+/// Both ways of finding the lights' transmittance.
+const SHADOWS: [Shadows; 2] = [Shadows::Grid, Shadows::Marched];
 
 /// Targets: the images of a slightly different density, so residuals are non-zero.
 fn targets(scene: &Scene) -> Vec<Image> {
@@ -52,8 +62,8 @@ fn frozen_loss(frozen: &Frozen, targets: &[Image], v: usize, h: f64) -> f64 {
 
 #[test]
 fn dual_derivatives_match_central_differences_of_the_frozen_estimator() {
-    for order in [1, 2, 3] {
-        let scene = scene(order);
+    for (order, shadows) in [1, 2, 3].into_iter().flat_map(|o| SHADOWS.map(|s| (o, s))) {
+        let scene = scene_with(order, shadows);
         let targets = targets(&scene);
         let frozen = Frozen::new(&scene, None);
         for (v, name) in probe_voxels(&scene) {
@@ -67,8 +77,8 @@ fn dual_derivatives_match_central_differences_of_the_frozen_estimator() {
             let fd = (4.0 * c2 - c1) / 3.0;
             let floor = 1e-9;
             let rel = (dual - fd).abs() / fd.abs().max(floor);
-            eprintln!("order {order}, {name} voxel {v}: dual {dual:.6e}, fd {fd:.6e}, rel {rel:.1e}");
-            assert!(rel <= 1e-5, "order {order}, {name}: dual {dual:e} vs fd {fd:e} (rel {rel:e})");
+            eprintln!("order {order}, {shadows:?}, {name} voxel {v}: dual {dual:.6e}, fd {fd:.6e}, rel {rel:.1e}");
+            assert!(rel <= 1e-5, "order {order}, {shadows:?}, {name}: dual {dual:e} vs fd {fd:e} (rel {rel:e})");
         }
     }
 }
@@ -99,8 +109,8 @@ fn vector_lanes_equal_single_duals_bit_for_bit() {
 
 #[test]
 fn forward_and_reverse_agree_on_every_voxel() {
-    for order in [1, 3] {
-        let scene = scene(order);
+    for (order, shadows) in [1, 3].into_iter().flat_map(|o| SHADOWS.map(|s| (o, s))) {
+        let scene = scene_with(order, shadows);
         let targets = targets(&scene);
         let frozen = Frozen::new(&scene, None);
         let all: Vec<usize> = (0..scene.density.len()).collect();
@@ -112,8 +122,14 @@ fn forward_and_reverse_agree_on_every_voxel() {
         for v in 0..all.len() {
             worst = worst.max((fwd[v] - rev.grad[v]).abs() / scale);
         }
-        eprintln!("order {order}: max |fwd - rev| / max |g| = {worst:.2e}, peak tape {} B", rev.peak_tape_bytes);
-        assert!(worst <= 1e-9, "order {order}: forward and reverse differ by {worst:e} of the largest entry");
+        eprintln!(
+            "order {order}, {shadows:?}: max |fwd - rev| / max |g| = {worst:.2e}, peak tape {} B",
+            rev.peak_tape_bytes
+        );
+        assert!(
+            worst <= 1e-9,
+            "order {order}, {shadows:?}: forward and reverse differ by {worst:e} of the largest entry"
+        );
     }
 }
 
@@ -151,14 +167,22 @@ fn subset_and_random_estimators_are_unbiased() {
 
 #[test]
 fn tape_primal_equals_f64_bit_for_bit() {
+    for shadows in SHADOWS {
+        tape_primal_matches(&scene_with(3, shadows));
+    }
+}
+
+fn tape_primal_matches(scene: &Scene) {
     use dualphoton::ad::tape::{self, Var};
     use dualphoton::volume::Grid;
-    let scene = scene(3);
-    let frozen = Frozen::new(&scene, None);
+    let frozen = Frozen::new(scene, None);
     let d = &scene.density;
     let leaves = Grid::new(d.lo, d.hi, d.shape, (0..d.len()).map(|v| Var::leaf(v as u32, d.data[v])).collect());
     let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
-    let rays = frozen.camera_rays(&leaves, None);
+    let depths = frozen
+        .light_depths(d)
+        .map(|per_light| per_light.iter().map(|g| g.as_ref().map(|g| g.map(Var::constant))).collect::<Vec<_>>());
+    let rays = frozen.camera_rays(&leaves, None, depths.as_ref());
     let ms: Option<Vec<Grid<Var>>> = multiple.map(|m| m.iter().map(|g| g.map(Var::constant)).collect());
     for c in 0..scene.cameras.len() {
         for p in 0..scene.cameras[c].pixels() {

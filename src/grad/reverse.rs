@@ -5,8 +5,10 @@
 //!
 //! The gradient is assembled in three sweeps, each over independent units
 //! with a tape of their own: (1) every differentiated pixel records its
-//! ray-march on the tape with the density voxels and the photon-estimate
-//! grid nodes as leaves, and is swept back with `dL/dÎ`; (2) the adjoints of
+//! ray-march on the tape with the density voxels, the photon-estimate grid
+//! nodes and the light-depth grid nodes as leaves, and is swept back with
+//! `dL/dÎ`; the light-depth adjoints go back along each node's shadow ray
+//! (linear: no tape); (2) the adjoints of
 //! the estimate's nodes become adjoints of the photon powers (the estimate is
 //! linear in them, with the frozen kernel weights); (3) every differentiated
 //! photon path is replayed on the tape and swept back from its powers.
@@ -136,6 +138,12 @@ fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut
     peak
 }
 
+/// `grid` with its values as tape leaves numbered from `first` (C order).
+fn leaf_grid(grid: &Grid<f64>, first: usize) -> Grid<Var> {
+    let data = grid.data.iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect();
+    Grid::new(grid.lo, grid.hi, grid.shape, data)
+}
+
 /// `dL/drho` of the frozen estimator by reverse mode over `subset`. The
 /// targets belong to the scene's first `targets.len()` cameras.
 pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> Reverse {
@@ -153,37 +161,31 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     let mut rng = Rng::new(subset.seed, Purpose::Gradient, 0);
 
     // Leaves: voxels 0..V, then the estimate's nodes camera by camera.
-    let leaf_density = Grid::new(
-        density.lo,
-        density.hi,
-        density.shape,
-        (0..voxels).map(|v| Var::leaf(v as u32, density.data[v])).collect(),
-    );
+    let leaf_density = leaf_grid(density, 0);
     let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
     let nodes = multiple.as_ref().map_or(0, |m| m[0].len());
-    let leaf_multiple: Option<Vec<Grid<Var>>> = multiple.as_ref().map(|grids| {
-        grids
+    let leaf_multiple: Option<Vec<Grid<Var>>> = multiple
+        .as_ref()
+        .map(|grids| grids.iter().enumerate().map(|(c, g)| leaf_grid(g, voxels + c * nodes)).collect());
+    // Then the light-depth grids, light by light (a voxel-sized block each).
+    let first_depth = voxels + nodes * scene.cameras.len();
+    let depths = frozen.light_depths(density);
+    let depth_nodes = frozen.light_depth().map_or(0, |d| d.grid_len());
+    let leaf_depths = depths.as_ref().map(|per_light| {
+        per_light
             .iter()
             .enumerate()
-            .map(|(c, g)| {
-                let first = voxels + c * nodes;
-                Grid::new(
-                    g.lo,
-                    g.hi,
-                    g.shape,
-                    g.data.iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect(),
-                )
-            })
-            .collect()
+            .map(|(l, g)| g.as_ref().map(|g| leaf_grid(g, first_depth + l * depth_nodes)))
+            .collect::<Vec<_>>()
     });
-    let leaves = voxels + nodes * scene.cameras.len();
+    let leaves = first_depth + depths.as_ref().map_or(0, |d| d.len() * depth_nodes);
     let mut total = vec![0.0; leaves];
 
     // (1) Pixels.
     // Only cameras with a target are differentiated (later ones are held out).
     let sizes: Vec<usize> = scene.cameras.iter().take(targets.len()).map(|c| c.pixels()).collect();
     let (pixels, pixel_scale) = draw_subset(sizes.iter().sum(), subset.pixels, &mut rng);
-    let rays = frozen.camera_rays(&leaf_density, None);
+    let rays = frozen.camera_rays(&leaf_density, None, leaf_depths.as_ref());
     let locate = |mut i: usize| {
         let mut c = 0;
         while i >= sizes[c] {
@@ -201,6 +203,20 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
         let value = rays.pixel(&scene.cameras[c], frozen.first_pixel(c), p, leaf_multiple.as_ref().map(|m| &m[c]));
         tape::backward(&[(value, seed)], |leaf, a| scratch.add(leaf, a));
     });
+
+    // (1b) Light-depth adjoints -> density adjoints, back along each node's shadow ray.
+    if let (Some(per_light), Some(light_depth)) = (&depths, frozen.light_depth()) {
+        for l in (0..per_light.len()).filter(|&l| per_light[l].is_some()) {
+            let first = first_depth + l * depth_nodes;
+            let mut adjoint = total[first..first + depth_nodes].to_vec();
+            light_depth.pad_adjoints(&mut adjoint);
+            let active: Vec<usize> = light_depth.nodes().iter().copied().filter(|&v| adjoint[v] != 0.0).collect();
+            sweep(&active, voxels, &mut total, |scratch, v| {
+                light_depth
+                    .adjoint(frozen.marcher(), density, l, v, adjoint[v], &mut |voxel, a| scratch.add(voxel as u32, a));
+            });
+        }
+    }
 
     // (2) Estimate-node adjoints -> photon power adjoints.
     let power_adjoint: Vec<f64> = match frozen.kernel() {

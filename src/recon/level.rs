@@ -40,7 +40,7 @@ impl Level {
     /// Half resolution, or `None` if a grid or image edge is odd or too small.
     pub fn half(problem: &Problem, mask: &[bool]) -> Option<Level> {
         let full = Level::full(problem, mask);
-        let even = |n: usize| n % 2 == 0 && n >= 8;
+        let even = |n: usize| n.is_multiple_of(2) && n >= 8;
         if !full.scene.density.shape.iter().all(|&n| even(n))
             || !full.scene.cameras.iter().all(|c| even(c.width) && even(c.height))
         {

@@ -230,7 +230,7 @@ fn directions(n: usize, k: usize, kind: Directions, rng: &mut Rng) -> (Vec<Vec<f
 fn back_projection(level: &Level, frozen: &Frozen) -> Vec<f64> {
     let d = &level.scene.density;
     let scale = level.scene.medium.sigma_t_scale;
-    let rays = frozen.camera_rays(d, None);
+    let marcher = frozen.marcher();
     let mut g = vec![0.0; d.len()];
     for (c, target) in level.targets.iter().enumerate() {
         let cam = &level.scene.cameras[c];
@@ -241,7 +241,7 @@ fn back_projection(level: &Level, frozen: &Frozen) -> Vec<f64> {
             }
             let ray = cam.ray((p % cam.width) as f64 + 0.5, (p / cam.width) as f64 + 0.5);
             let mut t = 1.0;
-            rays.marcher.steps(&ray, f64::INFINITY, 0.5, |s| {
+            marcher.steps(&ray, f64::INFINITY, 0.5, |s| {
                 let x = ray.at(s.sample);
                 if let Some(st) = d.stencil(&x) {
                     for k in 0..8 {

@@ -57,8 +57,8 @@ pub struct TrainSettings {
     pub lr_final: f64,
     /// Take each update's image residual from a second, independent render
     /// (another seed) rather than from the render differentiated. The
-    /// squared loss of a noisy render is biased, `E[(I - T)^2] = (E[I] - T)^2
-    /// + Var I`, and its gradient on one render carries the `Var I` term; with
+    /// squared loss of a noisy render is biased,
+    /// `E[(I - T)^2] = (E[I] - T)^2 + Var I`, and its gradient on one render carries the `Var I` term; with
     /// independent residual and derivative the gradient is that of `(E[I] - T)^2`.
     /// Costs one more primal render per update.
     pub decorrelate: bool,

@@ -1,9 +1,10 @@
 //! The camera-ray integral `L = ∫ T(0,t) sigma_s(x_t) L_s(x_t, -w) dt`
 //! (docs/DESIGN.md §2) by ray marching: per step, single scattering towards every
-//! light with a marched shadow ray, plus the photon estimate of the higher
-//! orders read from a grid. Generic over `R: Real`: the density carries
-//! derivatives, the step placement does not.
+//! light, its transmittance read from the light-depth grids (or marched),
+//! plus the photon estimate of the higher orders read from a grid. Generic
+//! over `R: Real`: the density carries derivatives, the step placement does not.
 
+use super::light_depth::Depths;
 use super::march::Marcher;
 use crate::ad::Real;
 use crate::math::Ray;
@@ -26,6 +27,9 @@ pub struct CameraRays<'a, R: Real> {
     pub lights: &'a [Light],
     /// Occupied-space marching.
     pub marcher: &'a Marcher,
+    /// Per light, the optical depth to it on a grid; `None`: a shadow ray is
+    /// marched from every sample.
+    pub depths: Option<&'a Depths<R>>,
     /// Jittered samples per pixel.
     pub spp: u32,
     /// Seed of the pixel streams.
@@ -100,14 +104,17 @@ impl<R: Real> CameraRays<'_, R> {
             }
             if !sigma_t.is_exact_zero() && self.medium.albedo > 0.0 {
                 let mut single = R::cst(0.0);
-                for light in self.lights.iter().filter(|l| l.intensity > 0.0) {
+                for (l, light) in self.lights.iter().enumerate().filter(|(_, l)| l.intensity > 0.0) {
                     let to_light = light.position - x;
                     let dist2 = to_light.norm_squared();
                     if dist2 == 0.0 {
                         continue; // A sample exactly on a point light: a set of measure zero.
                     }
                     let mu = (-to_light / dist2.sqrt()).dot(&w_out);
-                    let t = self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter);
+                    let t = match self.depths.and_then(|d| d[l].as_ref()) {
+                        Some(depth) => (-depth.at(&x)).exp(),
+                        None => self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter),
+                    };
                     single += t * (hg_eval(self.medium.g, mu) * light.intensity / dist2);
                 }
                 radiance += within * sigma_t * single * self.medium.albedo;

@@ -6,6 +6,7 @@
 //! primal is bit-identical whichever type evaluates it.
 
 use super::camera_rays::CameraRays;
+use super::light_depth::{Depths, LightDepth};
 use super::march::{Marcher, Step};
 use super::photons::{emitters, Emitter, Photon, Tracer};
 use super::splat::{Kernel, SplatGeometry};
@@ -24,6 +25,8 @@ pub struct Timings {
     pub trace: f64,
     /// Photon estimate onto the grids (gathering).
     pub gather: f64,
+    /// The light-depth grids (0 with marched shadow rays).
+    pub shadows: f64,
     /// Camera rays: single scattering and reading the estimate.
     pub camera: f64,
     /// Everything, setup included.
@@ -35,6 +38,8 @@ pub struct Frozen<'a> {
     /// The scene; its density is the sampling density.
     pub scene: &'a Scene,
     marcher: Marcher,
+    /// The marcher of photon flights (its own step).
+    photon_marcher: Marcher,
     emitters: Vec<Emitter>,
     /// Camera positions guiding photon scattering.
     guide: Vec<crate::math::Vec3>,
@@ -44,6 +49,8 @@ pub struct Frozen<'a> {
     path_start: Vec<usize>,
     geometry: Option<SplatGeometry>,
     kernel: Kernel,
+    /// The light-depth grids' nodes (`None`: marched shadow rays).
+    light_depth: Option<LightDepth>,
     /// Index of each camera's first pixel among all pixels (names the pixel streams).
     first_pixel: Vec<u64>,
     /// The rendered images (primal), one per camera.
@@ -70,8 +77,11 @@ impl<'a> Frozen<'a> {
 
         let t = Instant::now();
         let emitters = emitters(&scene.lights, &marcher.majorant, &density.lo, &density.hi);
+        // Photon flights integrate smooth transmittance: a coarser step than the camera rays'.
+        let photon_marcher = Marcher { step: settings.photon_step_for(density), ..marcher.clone() };
         let guide: Vec<_> = scene.cameras.iter().map(|c| c.position).collect();
-        let tracer = Tracer { density, medium: &scene.medium, marcher: &marcher, emitters: &emitters, guide: &guide };
+        let tracer =
+            Tracer { density, medium: &scene.medium, marcher: &photon_marcher, emitters: &emitters, guide: &guide };
         let photons = tracer.trace(settings.photons, settings.seed);
         let mut path_start = vec![0usize; settings.photons as usize + 1];
         for p in &photons {
@@ -100,15 +110,21 @@ impl<'a> Frozen<'a> {
                 Some(first)
             })
             .collect();
+        let scale = scene.medium.sigma_t_scale;
+        let light_depth = settings
+            .shadow_cell_for(density, scale)
+            .map(|cell| LightDepth::new(&marcher, density, cell, &scene.lights, scale, settings.seed));
         let mut frozen = Frozen {
             scene,
             marcher,
+            photon_marcher,
             emitters,
             guide,
             photons,
             path_start,
             geometry,
             kernel,
+            light_depth,
             first_pixel,
             images: vec![],
             timings,
@@ -117,7 +133,10 @@ impl<'a> Frozen<'a> {
         let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
         frozen.timings.gather += t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let rays = frozen.camera_rays(density, None);
+        let depths = frozen.light_depths(density);
+        frozen.timings.shadows = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let rays = frozen.camera_rays(density, None, depths.as_ref());
         let images = (0..scene.cameras.len())
             .map(|c| {
                 let camera = &scene.cameras[c];
@@ -132,11 +151,14 @@ impl<'a> Frozen<'a> {
     }
 
     /// Camera rays reading `density`, with sampling decisions from `sampling`
-    /// (`None`: the primal of `density`).
+    /// (`None`: the primal of `density`) and the lights' transmittance from
+    /// `depths` ([`light_depths`](Self::light_depths) of the same density;
+    /// `None`: marched shadow rays).
     pub fn camera_rays<'b, R: Real>(
         &'b self,
         density: &'b Grid<R>,
         sampling: Option<&'b Grid<f64>>,
+        depths: Option<&'b Depths<R>>,
     ) -> CameraRays<'b, R> {
         CameraRays {
             density,
@@ -144,9 +166,26 @@ impl<'a> Frozen<'a> {
             medium: &self.scene.medium,
             lights: &self.scene.lights,
             marcher: &self.marcher,
+            depths,
             spp: self.scene.render.spp,
             seed: self.scene.render.seed,
         }
+    }
+
+    /// The light-depth grids of `density` with this estimator's shadow rays;
+    /// `None` where the scene asks for marched shadow rays.
+    pub fn light_depths<R: Real>(&self, density: &Grid<R>) -> Option<Depths<R>> {
+        self.light_depth.as_ref().map(|d| d.depths(&self.marcher, density))
+    }
+
+    /// The light-depth grids' nodes and shadow rays (`None`: marched shadow rays).
+    pub fn light_depth(&self) -> Option<&LightDepth> {
+        self.light_depth.as_ref()
+    }
+
+    /// The marcher every ray of this estimator uses.
+    pub fn marcher(&self) -> &Marcher {
+        &self.marcher
     }
 
     /// Photon tracing with this estimator's decisions.
@@ -154,7 +193,7 @@ impl<'a> Frozen<'a> {
         Tracer {
             density: &self.scene.density,
             medium: &self.scene.medium,
-            marcher: &self.marcher,
+            marcher: &self.photon_marcher,
             emitters: &self.emitters,
             guide: &self.guide,
         }
@@ -221,7 +260,8 @@ impl<'a> Frozen<'a> {
     pub fn images_with<R: Real>(&self, density: &Grid<R>, cameras: usize) -> Vec<Vec<R>> {
         let powers = self.photon_powers(density);
         let multiple = self.multiple_with(|p| powers[p]);
-        let rays = self.camera_rays(density, Some(&self.scene.density));
+        let depths = self.light_depths(density);
+        let rays = self.camera_rays(density, Some(&self.scene.density), depths.as_ref());
         (0..cameras.min(self.scene.cameras.len()))
             .map(|c| rays.image(&self.scene.cameras[c], self.first_pixel[c], multiple.as_ref().map(|m| &m[c])))
             .collect()

@@ -8,6 +8,9 @@ use crate::ad::Real;
 use crate::math::{intersect_box, Ray, Vec3};
 use crate::volume::{Grid, Majorant};
 
+/// Optical depth beyond which marching stops: `exp(-800)` is 0 in `f64`.
+const DEPTH_CUTOFF: f64 = 800.0;
+
 /// Fractional part of the golden ratio: the additive recurrence with the best spread.
 const GOLDEN: f64 = 0.618_033_988_749_894_8;
 
@@ -76,13 +79,40 @@ impl Marcher {
     /// `sigma_t = scale * density`. Stops adding once the primal exceeds
     /// `cutoff` (beyond which `exp(-depth)` is zero in `f64`).
     pub fn optical_depth<R: Real>(&self, density: &Grid<R>, scale: f64, ray: &Ray, t_max: f64, jitter: f64) -> R {
-        const CUTOFF: f64 = 800.0;
         let mut depth = R::cst(0.0);
         self.steps(ray, t_max, jitter, |s| {
             depth += density.at(&ray.at(s.sample)) * (scale * s.h);
-            depth.re() < CUTOFF
+            depth.re() < DEPTH_CUTOFF
         });
         depth
+    }
+
+    /// Reverse mode of [`optical_depth`](Self::optical_depth): calls
+    /// `add(voxel, adjoint * d depth / d rho_voxel)` for every lookup of
+    /// the same march, stopping where it stops.
+    #[allow(clippy::too_many_arguments)]
+    pub fn optical_depth_adjoint(
+        &self,
+        density: &Grid<f64>,
+        scale: f64,
+        ray: &Ray,
+        t_max: f64,
+        jitter: f64,
+        adjoint: f64,
+        add: &mut impl FnMut(usize, f64),
+    ) {
+        let mut depth = 0.0;
+        self.steps(ray, t_max, jitter, |s| {
+            let x = ray.at(s.sample);
+            depth += density.at(&x) * (scale * s.h);
+            if let Some(st) = density.stencil(&x) {
+                let a = adjoint * (scale * s.h);
+                for c in 0..8 {
+                    add(st.index[c], a * st.weight[c]);
+                }
+            }
+            depth < DEPTH_CUTOFF
+        });
     }
 
     /// Transmittance from `from` to `to` in a straight line.

@@ -5,6 +5,7 @@
 pub mod path;
 
 pub mod camera_rays;
+pub mod light_depth;
 pub mod march;
 pub mod photon;
 pub mod photons;

@@ -39,9 +39,9 @@ use crate::volume::majorant::MAJORANT_BLOCK;
 use crate::volume::phase::{hg_eval, hg_sample};
 use crate::volume::{Grid, Majorant};
 
-/// Voxels per majorant block edge: small blocks give tight bounds (fewer
-/// null collisions), large ones fewer block crossings. On the 64^3 sphere
-/// of the benchmark test 4 and 8 are within timing noise; 4 is the tighter.
+// Voxels per majorant block edge (MAJORANT_BLOCK): small blocks give tight
+// bounds (fewer null collisions), large ones fewer block crossings. On the
+// 64^3 sphere of the benchmark test 4 and 8 are within timing noise; 4 is the tighter.
 
 /// Ratio tracking plays Russian roulette once its running transmittance
 /// falls below this (as pbrt-v4 does): unbiased, and it bounds the work in

@@ -6,7 +6,8 @@
 //! float64 array of shape (Z, Y, X), `sigma_t_scale`, `albedo`, `g`,
 //! `max_order`), `lights` (`position`, `intensity`), `cameras` (`position`,
 //! `look_at`, optional `up`, `fov_y_deg`, `width`, `height`) and an optional
-//! `render` (`photons`, `kernel_radius`, `step`, `seed`, `spp`, `path_spp`).
+//! `render` (`photons`, `kernel_radius`, `step`, `seed`, `spp`, `path_spp`,
+//! `shadows`: `"auto"`, `"grid"` or `"marched"`, `shadow_cell`, `photon_step`).
 //! Every field is required unless said otherwise, unknown fields are
 //! errors, and numbers must be finite: JSON cannot spell NaN or infinity,
 //! and `null` or a bare `NaN` in their place is reported as such.
@@ -14,7 +15,7 @@
 use super::fields::{nan_as_null, Fields};
 use super::validate::finite3;
 pub use super::validate::{check_photons, validate};
-use super::{Camera, Light, Medium, RenderSettings, Scene};
+use super::{Camera, Light, Medium, RenderSettings, Scene, Shadows};
 use crate::bail;
 use crate::error::{Error, Result};
 use crate::io::npy;
@@ -68,6 +69,12 @@ struct RenderFile {
     spp: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     path_spp: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    shadows: Option<Shadows>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    shadow_cell: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    photon_step: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -119,7 +126,18 @@ fn scene_file(root: &Value) -> Result<SceneFile> {
     let render = match top.get("render") {
         None => RenderFile::default(),
         Some(r) => {
-            let r = Fields::new(r, "render", &["photons", "kernel_radius", "step", "seed", "spp", "path_spp"])?;
+            let known = [
+                "photons",
+                "kernel_radius",
+                "step",
+                "seed",
+                "spp",
+                "path_spp",
+                "shadows",
+                "shadow_cell",
+                "photon_step",
+            ];
+            let r = Fields::new(r, "render", &known)?;
             RenderFile {
                 photons: r.optional_count("photons")?,
                 kernel_radius: r.optional("kernel_radius")?,
@@ -127,6 +145,9 @@ fn scene_file(root: &Value) -> Result<SceneFile> {
                 seed: r.optional("seed")?,
                 spp: r.optional("spp")?,
                 path_spp: r.optional("path_spp")?,
+                shadows: r.optional("shadows")?,
+                shadow_cell: r.optional("shadow_cell")?,
+                photon_step: r.optional("photon_step")?,
             }
         }
     };
@@ -200,6 +221,9 @@ pub fn load(path: &Path) -> Result<Scene> {
         seed: r.seed.unwrap_or(defaults.seed),
         spp: r.spp.unwrap_or(defaults.spp),
         path_spp: r.path_spp.unwrap_or(defaults.path_spp),
+        shadows: r.shadows.unwrap_or(defaults.shadows),
+        shadow_cell: r.shadow_cell,
+        photon_step: r.photon_step,
     };
     let scene = Scene { density, medium, lights, cameras, render };
     validate(&scene)?;
@@ -242,6 +266,9 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
             seed: Some(r.seed),
             spp: Some(r.spp),
             path_spp: Some(r.path_spp),
+            shadows: Some(r.shadows),
+            shadow_cell: r.shadow_cell,
+            photon_step: r.photon_step,
         },
     };
     let text = serde_json::to_string_pretty(&file).map_err(|e| Error(e.to_string()))?;

@@ -57,11 +57,55 @@ pub struct RenderSettings {
     pub spp: u32,
     /// Samples per pixel of the reference path tracer.
     pub path_spp: u32,
+    /// How the camera rays' single scattering finds the light's transmittance.
+    pub shadows: Shadows,
+    /// Voxels per node of the light-depth grids along each axis; default
+    /// [`RenderSettings::shadow_cell_for`].
+    pub shadow_cell: Option<u32>,
+    /// Ray-marching step of photon flights (world units); default the
+    /// smallest voxel size (twice the camera rays' default step).
+    pub photon_step: Option<f64>,
 }
+
+/// How the photon-mapping renderer computes the transmittance from a
+/// camera-ray sample to a light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Shadows {
+    /// `grid` where the densest voxel's optical depth over one light-depth
+    /// node spacing is at most [`GRID_MAX_DEPTH`] (the interpolation bias
+    /// is then small), else `marched`.
+    #[default]
+    Auto,
+    /// Per light, the optical depth at the nodes of a grid, marched once per
+    /// render and read trilinearly: fast, with an interpolation bias that
+    /// grows with the optical depth across a node spacing.
+    Grid,
+    /// A shadow ray marched from every sample: no interpolation, far slower.
+    Marched,
+}
+
+/// Largest optical depth across one light-depth node spacing (at the
+/// densest voxel) for which `auto` shadows use the grid. Interpolating the
+/// depth linearly across a density edge misses it by up to a quarter of
+/// this: transmittance off by up to 22 % in a shell one spacing thick at
+/// the edges of the densest smoke. What that does to whole images is
+/// measured in results/bench_render (the paper's plume: 0.43 at 64^3).
+pub const GRID_MAX_DEPTH: f64 = 1.0;
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings { photons: 300_000, kernel_radius: None, step: None, seed: 0, spp: 4, path_spp: 256 }
+        RenderSettings {
+            photons: 300_000,
+            kernel_radius: None,
+            step: None,
+            seed: 0,
+            spp: 4,
+            path_spp: 256,
+            shadows: Shadows::Auto,
+            shadow_cell: None,
+            photon_step: None,
+        }
     }
 }
 
@@ -82,6 +126,32 @@ impl RenderSettings {
     /// The ray-marching step to use on `density` (explicit or default).
     pub fn step_for(&self, density: &Grid<f64>) -> f64 {
         self.step.unwrap_or_else(|| 0.5 * density.voxel_size().min())
+    }
+
+    /// The photon flights' marching step on `density` (explicit or default).
+    pub fn photon_step_for(&self, density: &Grid<f64>) -> f64 {
+        self.photon_step.unwrap_or_else(|| density.voxel_size().min())
+    }
+
+    /// The light-depth grids' node spacing on `density` in voxels, or
+    /// `None` for marched shadow rays. Explicit `shadow_cell`, else one
+    /// node per voxel up to 64 voxels a side and coarser beyond, keeping
+    /// about 64 nodes a side (results/bench_render: at 128^3 a node every 2
+    /// voxels is as accurate as every voxel, at a sixth of the cost); under
+    /// `auto`, refined until the densest voxel's optical depth across a
+    /// spacing is at most [`GRID_MAX_DEPTH`], or marched if even one voxel is too much.
+    pub fn shadow_cell_for(&self, density: &Grid<f64>, sigma_t_scale: f64) -> Option<usize> {
+        let coarse = (density.shape.iter().max().unwrap() / 64).max(1);
+        let cell = self.shadow_cell.map_or(coarse, |c| c.max(1) as usize);
+        match self.shadows {
+            Shadows::Marched => None,
+            Shadows::Grid => Some(cell),
+            Shadows::Auto => {
+                let depth_per_voxel = density.max_value() * sigma_t_scale * density.voxel_size().max();
+                let fits = |c: usize| depth_per_voxel * c as f64 <= GRID_MAX_DEPTH;
+                (1..=cell).rev().find(|&c| fits(c))
+            }
+        }
     }
 }
 

@@ -76,6 +76,14 @@ pub fn validate(scene: &Scene) -> Result<()> {
             bail!("render.step: {s} must be finite and > 0");
         }
     }
+    if let Some(s) = r.photon_step {
+        if !(s.is_finite() && s > 0.0) {
+            bail!("render.photon_step: {s} must be finite and > 0");
+        }
+    }
+    if r.shadow_cell == Some(0) {
+        bail!("render.shadow_cell: must be at least 1 (voxels per light-depth node)");
+    }
     if r.spp == 0 {
         bail!("render.spp: must be at least 1");
     }
