@@ -1,6 +1,8 @@
 //! Cost of one gradient: time and peak memory of each
 //! estimator and lane count K, as ratios to one primal render, on the paper
-//! rig at 64^3 (4 training cameras, 3 lights, orders 1-3, 300,000 photons).
+//! rig at 64^3 and 128^3 (4 training cameras, 3 lights, orders 1-3, 300,000
+//! photons), and the exact latent gradient of the reconstruction's model
+//! (64 directions through the decoder, `fwd-full`).
 //! Writes `results/bench_grad/{bench.csv, summary.md, manifest.json}`.
 //!
 //! Peak memory is the process's resident high-water mark (VmHWM), reset
@@ -14,6 +16,10 @@ use dualphoton::grad::forward::{coordinate_gradient, random_gradient, Directions
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
 use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::{peak_memory_mib, reset_peak_memory, write_manifest};
+use dualphoton::recon::level::Level;
+use dualphoton::recon::param_grad::latent_exact;
+use dualphoton::recon::problem::{paper_problem, Problem};
+use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::rng::Rng;
 use dualphoton::scene::{rig, Scene};
@@ -25,9 +31,13 @@ use std::time::Instant;
 #[derive(Parser, Serialize)]
 #[command(about = "Time and peak memory of one gradient per estimator and lane count")]
 struct Args {
-    /// Grid resolution (images res x res).
-    #[arg(long, default_value_t = 64)]
-    res: usize,
+    /// Grid resolutions (images res x res).
+    #[arg(long, value_delimiter = ',', default_value = "64,128")]
+    res: Vec<usize>,
+    /// Lane counts K of the forward estimators, per resolution: all of
+    /// them at the first resolution, only the largest at the others.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+    lanes: Vec<usize>,
     /// Repeats per measurement (median reported).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
@@ -68,16 +78,103 @@ fn main() -> std::process::ExitCode {
     dualphoton::error::exit_code(run(Args::parse()))
 }
 
+/// One measured gradient.
+struct Row {
+    res: usize,
+    name: String,
+    lanes: usize,
+    directions: usize,
+    seconds: f64,
+    primal_s: f64,
+    peak_mib: f64,
+    primal_mib: f64,
+}
+
 fn run(mut args: Args) -> Result<()> {
     if args.smoke {
-        args.res = 16;
+        args.res = vec![16, 32];
         args.repeats = 1;
         args.directions = 8;
     }
     std::fs::create_dir_all(&args.out)?;
     let started = Instant::now();
+    let mut rows = vec![];
+    let mut md = String::from(
+        "# Cost of one gradient, paper rig (4 cameras, 300000 photons)\n\n\
+         Times are for the derivative passes alone, on top of the primal render that freezes the estimator;\n\
+         `x primal` divides by that primal's time at the same resolution.\n\n",
+    );
+    for (n, &res) in args.res.iter().enumerate() {
+        let lanes: Vec<usize> =
+            if n == 0 { args.lanes.clone() } else { args.lanes.iter().max().into_iter().copied().collect() };
+        let before = rows.len();
+        measure_res(&args, res, &lanes, &mut rows)?;
+        let r = &rows[before];
+        let _ = writeln!(
+            md,
+            "## {res}^3, {res}x{res} images\n\nPrimal render: {:.3} s, peak {:.0} MiB (median of {}; {} threads).\n\n\
+             | estimator | K | directions | time (s) | x primal | peak MiB |\n|---|---|---|---|---|---|",
+            r.primal_s,
+            r.primal_mib,
+            args.repeats,
+            rayon::current_num_threads()
+        );
+        for r in &rows[before..] {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.3} | {:.2} | {:.0} |",
+                r.name,
+                if r.lanes == 0 { "-".into() } else { r.lanes.to_string() },
+                r.directions,
+                r.seconds,
+                r.seconds / r.primal_s,
+                r.peak_mib
+            );
+        }
+        md.push('\n');
+    }
+    let mut csv = csv::Writer::from_path(args.out.join("bench.csv")).map_err(|e| Error(e.to_string()))?;
+    csv.write_record([
+        "res",
+        "estimator",
+        "lanes",
+        "directions",
+        "seconds",
+        "time_ratio_to_primal",
+        "peak_mib",
+        "primal_s",
+        "primal_peak_mib",
+    ])
+    .map_err(|e| Error(e.to_string()))?;
+    for r in &rows {
+        csv.write_record([
+            r.res.to_string(),
+            r.name.clone(),
+            r.lanes.to_string(),
+            r.directions.to_string(),
+            format!("{:.4}", r.seconds),
+            format!("{:.3}", r.seconds / r.primal_s),
+            format!("{:.1}", r.peak_mib),
+            format!("{:.4}", r.primal_s),
+            format!("{:.1}", r.primal_mib),
+        ])
+        .map_err(|e| Error(e.to_string()))?;
+    }
+    csv.flush()?;
+    let _ =
+        writeln!(md, "Regenerate: `cargo run --release --bin bench_grad` ({:.0} s).", started.elapsed().as_secs_f64());
+    std::fs::write(args.out.join("summary.md"), &md)?;
+    let manifest = Manifest { settings: &args, peak_reset_supported: reset_peak_memory() };
+    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
+    print!("{md}");
+    Ok(())
+}
+
+/// The rows of one resolution: the primal, reverse mode, the forward
+/// estimators at each of `lanes`, and the model's exact latent gradient.
+fn measure_res(args: &Args, res: usize, lanes: &[usize], rows: &mut Vec<Row>) -> Result<()> {
     // Ground truth images from the plume; the gradient is taken at half its density.
-    let mut truth: Scene = rig::paper_scene(plume(args.res, 0), args.res);
+    let mut truth: Scene = rig::paper_scene(plume(res, 0), res);
     truth.cameras.truncate(4);
     if args.smoke {
         truth.render.photons = 20_000;
@@ -94,81 +191,65 @@ fn run(mut args: Args) -> Result<()> {
     let reach = frozen.reachable_voxels();
     let coords: Vec<usize> =
         reach.iter().step_by((reach.len() / args.directions).max(1)).take(args.directions).copied().collect();
-    eprintln!("primal: {primal_s:.3} s, {primal_mib:.0} MiB; {} reachable voxels", reach.len());
-
-    let mut rows: Vec<(String, usize, usize, f64, f64)> = vec![];
-    let (s, m) = measure(args.repeats, || {
-        reverse_gradient(&frozen, &targets, Subset::full());
-    });
-    rows.push((Estimator::RevFull.name().into(), 0, reach.len(), s, m));
-    let (s, m) = measure(args.repeats, || {
-        reverse_gradient(&frozen, &targets, Subset { pixels: Some(1000), paths: Some(5000), seed: 1 });
-    });
-    rows.push((format!("{} (1000 px, 5000 paths)", Estimator::RevSub.name()), 0, reach.len(), s, m));
-    macro_rules! forward {
-        ($($k:literal),*) => {$(
-            let (s, m) = measure(args.repeats, || {
-                random_gradient::<$k>(&frozen, &reach, &targets, Directions::Gaussian, &mut Rng::from_seed(1));
-            });
-            rows.push((Estimator::FwdRand.name().into(), $k, $k, s, m));
-            let (s, m) = measure(args.repeats.min(2), || {
-                coordinate_gradient::<$k>(&frozen, &coords, &targets, &|_, _| {});
-            });
-            rows.push((format!("{} ({} directions)", Estimator::FwdFull.name(), coords.len()), $k, coords.len(), s, m));
-            eprintln!("K = {}: done", $k);
-        )*};
-    }
-    forward!(1, 2, 4, 8, 16);
-
-    let mut csv = csv::Writer::from_path(args.out.join("bench.csv")).map_err(|e| Error(e.to_string()))?;
-    csv.write_record([
-        "estimator",
-        "lanes",
-        "directions",
-        "seconds",
-        "time_ratio_to_primal",
-        "peak_mib",
-        "primal_peak_mib",
-    ])
-    .map_err(|e| Error(e.to_string()))?;
-    let mut md = format!(
-        "# Cost of one gradient, paper rig {r}^3 ({} cameras of {r}x{r}, {} photons)\n\n\
-         Primal render (photon tracing + estimate + camera rays): {primal_s:.3} s, peak {primal_mib:.0} MiB (median of {}; {} threads).\n\
-         Times below are for the derivative passes alone, on top of the primal that freezes the estimator.\n\n\
-         | estimator | K | directions | time (s) | x primal | peak MiB |\n|---|---|---|---|---|---|\n",
-        scene.cameras.len(),
-        scene.render.photons,
-        args.repeats,
-        rayon::current_num_threads(),
-        r = args.res
+    eprintln!("{res}^3 primal: {primal_s:.3} s, {primal_mib:.0} MiB; {} reachable voxels", reach.len());
+    let mut push = |name: String, lanes: usize, directions: usize, (seconds, peak_mib): (f64, f64)| {
+        eprintln!("  {name}, K = {lanes}: {seconds:.3} s ({:.2} x primal)", seconds / primal_s);
+        rows.push(Row { res, name, lanes, directions, seconds, primal_s, peak_mib, primal_mib });
+    };
+    push(
+        Estimator::RevFull.name().into(),
+        0,
+        reach.len(),
+        measure(args.repeats, || {
+            reverse_gradient(&frozen, &targets, Subset::full());
+        }),
     );
-    for (name, k, dirs, s, m) in &rows {
-        csv.write_record([
-            name.clone(),
-            k.to_string(),
-            dirs.to_string(),
-            format!("{s:.4}"),
-            format!("{:.3}", s / primal_s),
-            format!("{m:.1}"),
-            format!("{primal_mib:.1}"),
-        ])
-        .map_err(|e| Error(e.to_string()))?;
-        let _ = writeln!(
-            md,
-            "| {name} | {} | {dirs} | {s:.3} | {:.2} | {m:.0} |",
-            if *k == 0 { "-".into() } else { k.to_string() },
-            s / primal_s
-        );
-    }
-    csv.flush()?;
-    let _ = writeln!(
-        md,
-        "\nRegenerate: `cargo run --release --bin bench_grad` ({:.0} s).",
-        started.elapsed().as_secs_f64()
+    push(
+        format!("{} (1000 px, 5000 paths)", Estimator::RevSub.name()),
+        0,
+        reach.len(),
+        measure(args.repeats, || {
+            reverse_gradient(&frozen, &targets, Subset { pixels: Some(1000), paths: Some(5000), seed: 1 });
+        }),
     );
-    std::fs::write(args.out.join("summary.md"), &md)?;
-    let manifest = Manifest { settings: &args, peak_reset_supported: reset_peak_memory() };
-    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
-    print!("{md}");
+    for &k in lanes {
+        macro_rules! at_lanes {
+            ($($k:literal),*) => {
+                match k {
+                    $($k => {
+                        let t = measure(args.repeats, || {
+                            random_gradient::<$k>(&frozen, &reach, &targets, Directions::Gaussian, &mut Rng::from_seed(1));
+                        });
+                        push(Estimator::FwdRand.name().into(), k, k, t);
+                        let t = measure(args.repeats.min(2), || {
+                            coordinate_gradient::<$k>(&frozen, &coords, &targets, &|_, _| {});
+                        });
+                        push(format!("{} ({} voxel directions)", Estimator::FwdFull.name(), coords.len()), k, coords.len(), t);
+                    })*
+                    _ => return Err(Error(format!("--lanes: {k} is not one of 1, 2, 4, 8, 16"))),
+                }
+            };
+        }
+        at_lanes!(1, 2, 4, 8, 16);
+    }
+
+    // The exact latent gradient of the reconstruction's model: the decoder in dual numbers, then the renderer.
+    let problem = paper_problem(res, 0, truth.render.photons, 0);
+    let (train, held_out) = problem.images.split_at(rig::HELD_OUT_CAMERA);
+    let p = Problem { scene: &problem.scene, targets: train, held_out, truth: None };
+    let model = initial_model(&problem.scene, train, 0)?;
+    let level = Level::full(&p, &model.mask);
+    let at = level.scene_at(&model.density(&problem.scene.density), truth.render.photons, truth.render.spp, 1);
+    let frozen = Frozen::new(&at, Some(&level.support));
+    let k = lanes.iter().copied().max().unwrap_or(16);
+    let t = measure(args.repeats.min(2), || {
+        latent_exact(&level, &model, &frozen, k).expect("lanes are a supported count");
+    });
+    push(
+        format!("{} latent ({} directions, decoder included)", Estimator::FwdFull.name(), model.z.len()),
+        k,
+        model.z.len(),
+        t,
+    );
     Ok(())
 }

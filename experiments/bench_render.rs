@@ -7,6 +7,11 @@
 //!   the default kernel radius; photons per second;
 //! - `sweep.csv` + `error_vs_time.svg`: block relative RMSE against a
 //!   converged path-traced reference as photon count and kernel radius vary;
+//! - `shadows.csv`: the lights' transmittance from the light-depth grids
+//!   (default, and one node per voxel) against marched shadow rays, for
+//!   single scattering alone (the only order it enters) and for orders 1-3,
+//!   against references of the same orders; and a thick plume (the built-in
+//!   one blurred, about a quarter of the box) seen by all five cameras;
 //! - `summary.md`, `manifest.json`;
 //! - `reference_<res>/`: the reference images (rendered once, reused when
 //!   their manifest matches).
@@ -17,8 +22,11 @@ use clap::Parser;
 use dualphoton::data::plume::plume;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::{reference_noise, rel_mean_diff};
-use dualphoton::eval::reference::{reference, REF_SEED};
-use dualphoton::eval::sweep::{error, median_of, photon_sweep, timed, SweepPoint, ERROR_BLOCK};
+use dualphoton::eval::reference::{self, REF_SEED};
+use dualphoton::eval::scenes::thick_plume;
+use dualphoton::eval::sweep::{
+    error, median_of, photon_sweep, shadow_comparison, timed, ShadowPoint, SweepPoint, ERROR_BLOCK,
+};
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::write_rows;
@@ -41,11 +49,17 @@ struct Args {
     #[arg(long, default_value_t = 5)]
     repeats: usize,
     /// Photon counts of the sweep.
-    #[arg(long, value_delimiter = ',', default_value = "30000,100000,300000,1000000,3000000")]
+    #[arg(long, value_delimiter = ',', default_value = "30000,100000,300000,500000,1000000,3000000")]
     photons: Vec<u64>,
     /// Kernel radii of the sweep, in voxels.
     #[arg(long, value_delimiter = ',', default_value = "1,1.5,2,3")]
     radii: Vec<f64>,
+    /// Resolution of the thick plume (0: leave it out).
+    #[arg(long, default_value_t = 64)]
+    thick_res: usize,
+    /// Samples per pixel of the thick plume's reference.
+    #[arg(long, default_value_t = 4096)]
+    thick_ref_spp: u32,
     /// Output directory.
     #[arg(long, default_value = "results/bench_render")]
     out: PathBuf,
@@ -78,6 +92,39 @@ struct TimingRow {
     threads: usize,
 }
 
+/// One way of finding the lights' transmittance on one scene and orders.
+#[derive(Serialize)]
+struct ShadowRow {
+    scene: &'static str,
+    res: usize,
+    cameras: usize,
+    orders: &'static str,
+    shadows: String,
+    voxels_per_node: usize,
+    total_s: f64,
+    grids_and_camera_s: f64,
+    block_rel_rmse: f64,
+    mean_rel_diff: f64,
+}
+
+impl ShadowRow {
+    fn new(scene: &'static str, res: usize, cameras: usize, orders: &'static str, p: ShadowPoint) -> Self {
+        let ShadowPoint { shadows, cell, seconds, camera_seconds, block_rel_rmse, mean_rel_diff } = p;
+        ShadowRow {
+            scene,
+            res,
+            cameras,
+            orders,
+            shadows,
+            voxels_per_node: cell,
+            total_s: seconds,
+            grids_and_camera_s: camera_seconds,
+            block_rel_rmse,
+            mean_rel_diff,
+        }
+    }
+}
+
 /// One point of the photon-count and radius sweep.
 #[derive(Serialize)]
 struct SweepRow {
@@ -104,17 +151,19 @@ fn run(mut args: Args) -> Result<()> {
         args.repeats = 1;
         args.photons = vec![10_000, 30_000];
         args.radii = vec![1.0, 2.0];
+        args.thick_res = 16;
+        args.thick_ref_spp = 64;
     }
     std::fs::create_dir_all(&args.out)?;
     let started = Instant::now();
-    let (mut timing, mut sweep, mut series) = (vec![], vec![], vec![]);
+    let (mut timing, mut sweep, mut series, mut shadows) = (vec![], vec![], vec![], vec![]);
     let mut summary =
         String::from("# Renderer speed and error (paper rig, 4 training cameras, 3 lights, orders 1-3)\n\n");
     for (n, &res) in args.res.iter().enumerate() {
         let spp = args.ref_spp.get(n).copied().unwrap_or(4096);
         let scene = rig::paper_training_scene(plume(res, SEED), res);
         eprintln!("res {res}: reference at {spp} spp");
-        let reference = reference(&scene, SEED, spp, &args.out.join(format!("reference_{res}")))?;
+        let reference = reference::reference(&scene, SEED, spp, &args.out.join(format!("reference_{res}")))?;
         let noise = reference_noise(&reference.radiance, &reference.std_err, ERROR_BLOCK);
         let voxel = scene.density.voxel_size().max();
 
@@ -158,6 +207,16 @@ fn run(mut args: Args) -> Result<()> {
         );
         timing.push(row);
 
+        // The lights' transmittance: single scattering alone, where it enters, and all orders.
+        let single_reference =
+            reference::reference(&single_scene, SEED, spp, &args.out.join(format!("reference_{res}_order1")))?;
+        for (orders, s, rf) in [("1", &single_scene, &single_reference), ("1-3", &scene, &reference)] {
+            eprintln!("res {res}, orders {orders}:");
+            for point in shadow_comparison(s, rf, args.repeats) {
+                shadows.push(ShadowRow::new("plume", res, s.cameras.len(), orders, point));
+            }
+        }
+
         // Error against time over photon count and radius.
         let _ = writeln!(
             summary,
@@ -190,6 +249,43 @@ fn run(mut args: Args) -> Result<()> {
         sweep.extend(points.into_iter().map(|p| SweepRow::new(res, p)));
         summary.push('\n');
     }
+    if args.thick_res > 0 {
+        let res = args.thick_res;
+        let scene = rig::paper_scene(thick_plume(res, SEED), res);
+        eprintln!("thick plume {res}^3: reference at {} spp", args.thick_ref_spp);
+        let rf =
+            reference::reference(&scene, SEED, args.thick_ref_spp, &args.out.join(format!("reference_thick_{res}")))?;
+        for point in shadow_comparison(&scene, &rf, args.repeats) {
+            shadows.push(ShadowRow::new("thick plume", res, scene.cameras.len(), "1-3", point));
+        }
+    }
+    let _ = writeln!(
+        summary,
+        "## The lights' transmittance: light-depth grids against marched shadow rays
+
+         Same photons in every row of a scene; the reference has the same orders.
+
+         | scene | res | cameras | orders | shadows | voxels per node | time (s) | grids + camera rays (s) | block rel. RMSE | image-sum diff |
+         |---|---|---|---|---|---|---|---|---|---|"
+    );
+    for r in &shadows {
+        let _ = writeln!(
+            summary,
+            "| {} | {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.2} % | {:+.2} % |",
+            r.scene,
+            r.res,
+            r.cameras,
+            r.orders,
+            r.shadows,
+            if r.voxels_per_node == 0 { "-".to_string() } else { r.voxels_per_node.to_string() },
+            r.total_s,
+            r.grids_and_camera_s,
+            100.0 * r.block_rel_rmse,
+            100.0 * r.mean_rel_diff
+        );
+    }
+    summary.push('\n');
+    write_rows(&args.out.join("shadows.csv"), &shadows)?;
     write_rows(&args.out.join("timing.csv"), &timing)?;
     write_rows(&args.out.join("sweep.csv"), &sweep)?;
     line_chart(

@@ -183,7 +183,9 @@ fn tape_primal_matches(scene: &Scene) {
         .light_depths(d)
         .map(|per_light| per_light.iter().map(|g| g.as_ref().map(|g| g.map(Var::constant))).collect::<Vec<_>>());
     let rays = frozen.camera_rays(&leaves, None, depths.as_ref());
-    let ms: Option<Vec<Grid<Var>>> = multiple.map(|m| m.iter().map(|g| g.map(Var::constant)).collect());
+    let ms: Option<Vec<_>> = multiple
+        .as_ref()
+        .map(|m| m.iter().map(|e| e.with_values(e.values.iter().map(|&v| Var::constant(v)).collect())).collect());
     for c in 0..scene.cameras.len() {
         for p in 0..scene.cameras[c].pixels() {
             tape::reset();

@@ -89,3 +89,61 @@ pub fn photon_sweep(
     }
     points
 }
+
+/// One way of finding the lights' transmittance on one scene, timed and
+/// compared with the path-traced reference.
+#[derive(Clone, Debug, Serialize)]
+pub struct ShadowPoint {
+    /// Which way: `auto: grid` or `auto: marched` (the default, and what it
+    /// chose), `grid, 1 voxel` or `marched`.
+    pub shadows: String,
+    /// Voxels per light-depth node (0: marched).
+    pub cell: usize,
+    /// Median render time (s).
+    pub seconds: f64,
+    /// Median time of the light-depth grids and the camera rays (s).
+    pub camera_seconds: f64,
+    /// Block relative RMSE against the reference.
+    pub block_rel_rmse: f64,
+    /// Relative difference of the summed radiance.
+    pub mean_rel_diff: f64,
+}
+
+/// Renders `scene` with the default shadows, with light-depth nodes at every
+/// voxel, and with marched shadow rays; the photons are the same in all
+/// three, so their differences are those of the transmittance alone.
+pub fn shadow_comparison(scene: &Scene, reference: &Reference, repeats: usize) -> Vec<ShadowPoint> {
+    use crate::scene::Shadows;
+    let variants =
+        [("auto", Shadows::Auto, None), ("grid, 1 voxel", Shadows::Grid, Some(1)), ("marched", Shadows::Marched, None)];
+    variants
+        .into_iter()
+        .map(|(name, shadows, cell)| {
+            let mut s = scene.clone();
+            s.render.shadows = shadows;
+            s.render.shadow_cell = cell;
+            let (r, times) = timed(&s, repeats);
+            let cell = s.render.shadow_cell_for(&s.density, s.medium.sigma_t_scale);
+            let name = match (shadows, cell) {
+                (Shadows::Auto, Some(_)) => "auto: grid".to_string(),
+                (Shadows::Auto, None) => "auto: marched".to_string(),
+                _ => name.to_string(),
+            };
+            let point = ShadowPoint {
+                shadows: name.clone(),
+                cell: cell.unwrap_or(0),
+                seconds: median_of(&times, |t| t.total),
+                camera_seconds: median_of(&times, |t| t.shadows + t.camera),
+                block_rel_rmse: error(&r.images, reference),
+                mean_rel_diff: rel_mean_diff(&r.images, &reference.radiance),
+            };
+            eprintln!(
+                "  shadows {name}: {:.3} s, block rel RMSE {:.2} %, sum {:+.2} %",
+                point.seconds,
+                100.0 * point.block_rel_rmse,
+                100.0 * point.mean_rel_diff
+            );
+            point
+        })
+        .collect()
+}

@@ -20,7 +20,7 @@ use crate::ad::tape::{self, Var};
 use crate::image::Image;
 use crate::render::frozen::Frozen;
 use crate::render::march::Step;
-use crate::render::splat::phase_towards;
+use crate::render::splat::{phase_towards, Estimate};
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
 use rayon::prelude::*;
@@ -138,10 +138,14 @@ fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut
     peak
 }
 
+/// `values` as tape leaves numbered from `first`.
+fn leaves(values: &[f64], first: usize) -> Vec<Var> {
+    values.iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect()
+}
+
 /// `grid` with its values as tape leaves numbered from `first` (C order).
 fn leaf_grid(grid: &Grid<f64>, first: usize) -> Grid<Var> {
-    let data = grid.data.iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect();
-    Grid::new(grid.lo, grid.hi, grid.shape, data)
+    Grid::new(grid.lo, grid.hi, grid.shape, leaves(&grid.data, first))
 }
 
 /// `dL/drho` of the frozen estimator by reverse mode over `subset`. The
@@ -163,10 +167,10 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     // Leaves: voxels 0..V, then the estimate's nodes camera by camera.
     let leaf_density = leaf_grid(density, 0);
     let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
-    let nodes = multiple.as_ref().map_or(0, |m| m[0].len());
-    let leaf_multiple: Option<Vec<Grid<Var>>> = multiple
-        .as_ref()
-        .map(|grids| grids.iter().enumerate().map(|(c, g)| leaf_grid(g, voxels + c * nodes)).collect());
+    let nodes = multiple.as_ref().map_or(0, |m| m[0].values.len());
+    let leaf_multiple: Option<Vec<Estimate<Var>>> = multiple.as_ref().map(|estimates| {
+        estimates.iter().enumerate().map(|(c, e)| e.with_values(leaves(&e.values, voxels + c * nodes))).collect()
+    });
     // Then the light-depth grids, light by light (a voxel-sized block each).
     let first_depth = voxels + nodes * scene.cameras.len();
     let depths = frozen.light_depths(density);
@@ -221,7 +225,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     // (2) Estimate-node adjoints -> photon power adjoints.
     let power_adjoint: Vec<f64> = match frozen.kernel() {
         None => vec![],
-        Some((_, kernel)) => {
+        Some((geometry, kernel)) => {
             let m = &scene.medium;
             (0..frozen.photons.len())
                 .into_par_iter()
@@ -233,7 +237,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
                             continue;
                         };
                         let node_adj = &total[voxels + c * nodes..voxels + (c + 1) * nodes];
-                        let s: f64 = kernel.deposits(p).map(|(n, w)| node_adj[n] * w).sum();
+                        let s: f64 = kernel.deposits(p).map(|(n, w)| node_adj[geometry.slot(n)] * w).sum();
                         adj += s * m.albedo * phase;
                     }
                     adj

@@ -6,6 +6,7 @@
 
 use super::light_depth::Depths;
 use super::march::Marcher;
+use super::splat::Estimate;
 use crate::ad::Real;
 use crate::math::Ray;
 use crate::rng::{Purpose, Rng};
@@ -43,7 +44,7 @@ impl<R: Real> CameraRays<'_, R> {
     /// The image of `camera`; `first_pixel` is the index of its first pixel
     /// among all cameras of the scene (it names the random streams), and
     /// `multiple` the photon estimate towards this camera, if any.
-    pub fn image(&self, camera: &Camera, first_pixel: u64, multiple: Option<&Grid<R>>) -> Vec<R> {
+    pub fn image(&self, camera: &Camera, first_pixel: u64, multiple: Option<&Estimate<R>>) -> Vec<R> {
         (0..camera.pixels())
             .into_par_iter()
             .with_min_len(16)
@@ -54,7 +55,7 @@ impl<R: Real> CameraRays<'_, R> {
     /// Pixel `p` (row-major) of `camera`: the mean of `spp` jittered rays,
     /// stratified as a Latin hypercube over the pixel (one sample per row
     /// and per column stratum).
-    pub fn pixel(&self, camera: &Camera, first_pixel: u64, p: usize, multiple: Option<&Grid<R>>) -> R {
+    pub fn pixel(&self, camera: &Camera, first_pixel: u64, p: usize, multiple: Option<&Estimate<R>>) -> R {
         let mut rng = Rng::new(self.seed, Purpose::Pixel, first_pixel + p as u64);
         let (x, y) = ((p % camera.width) as f64, (p / camera.width) as f64);
         let n = self.spp as usize;
@@ -74,7 +75,7 @@ impl<R: Real> CameraRays<'_, R> {
     }
 
     /// Radiance arriving along `-ray.dir` at the ray's origin.
-    pub fn radiance(&self, ray: &Ray, jitter: f64, shadow_jitter: f64, multiple: Option<&Grid<R>>) -> R {
+    pub fn radiance(&self, ray: &Ray, jitter: f64, shadow_jitter: f64, multiple: Option<&Estimate<R>>) -> R {
         let scale = self.medium.sigma_t_scale;
         let w_out = -ray.dir;
         let mut transmittance = R::cst(1.0);

@@ -9,7 +9,7 @@ use super::camera_rays::CameraRays;
 use super::light_depth::{Depths, LightDepth};
 use super::march::{Marcher, Step};
 use super::photons::{emitters, Emitter, Photon, Tracer};
-use super::splat::{Kernel, SplatGeometry};
+use super::splat::{Estimate, Kernel, SplatGeometry};
 use crate::ad::Real;
 use crate::image::Image;
 use crate::scene::Scene;
@@ -96,7 +96,7 @@ impl<'a> Frozen<'a> {
         let (geometry, kernel) = if photons.is_empty() {
             (None, Kernel::default())
         } else {
-            let geometry = SplatGeometry::new(density, settings.kernel_radius_for(density));
+            let mut geometry = SplatGeometry::new(density, settings.kernel_radius_for(density));
             let kernel = geometry.kernel(&photons);
             (Some(geometry), kernel)
         };
@@ -129,23 +129,28 @@ impl<'a> Frozen<'a> {
             images: vec![],
             timings,
         };
-        let t = Instant::now();
-        let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
-        frozen.timings.gather += t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let depths = frozen.light_depths(density);
-        frozen.timings.shadows = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let rays = frozen.camera_rays(density, None, depths.as_ref());
-        let images = (0..scene.cameras.len())
-            .map(|c| {
-                let camera = &scene.cameras[c];
-                let data = rays.image(camera, frozen.first_pixel[c], multiple.as_ref().map(|m| &m[c]));
-                Image { width: camera.width, height: camera.height, data }
-            })
-            .collect();
+        let (images, gather, shadows, camera) = {
+            let t = Instant::now();
+            let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
+            let gather = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let depths = frozen.light_depths(density);
+            let shadows = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let rays = frozen.camera_rays(density, None, depths.as_ref());
+            let images = (0..scene.cameras.len())
+                .map(|c| {
+                    let camera = &scene.cameras[c];
+                    let data = rays.image(camera, frozen.first_pixel[c], multiple.as_ref().map(|m| &m[c]));
+                    Image { width: camera.width, height: camera.height, data }
+                })
+                .collect();
+            (images, gather, shadows, t.elapsed().as_secs_f64())
+        };
         frozen.images = images;
-        frozen.timings.camera = t.elapsed().as_secs_f64();
+        frozen.timings.gather += gather;
+        frozen.timings.shadows = shadows;
+        frozen.timings.camera = camera;
         frozen.timings.total = start.elapsed().as_secs_f64();
         frozen
     }
@@ -222,7 +227,7 @@ impl<'a> Frozen<'a> {
 
     /// The photon estimate towards each camera with photon `p`'s power given
     /// by `power(p)`; `None` if there are no photons.
-    pub fn multiple_with<R: Real>(&self, power: impl Fn(usize) -> R + Sync) -> Option<Vec<Grid<R>>> {
+    pub fn multiple_with<R: Real>(&self, power: impl Fn(usize) -> R + Sync) -> Option<Vec<Estimate<'_, R>>> {
         let geometry = self.geometry.as_ref()?;
         let cams: Vec<_> = self.scene.cameras.iter().map(|c| c.position).collect();
         let m = &self.scene.medium;
@@ -258,12 +263,21 @@ impl<'a> Frozen<'a> {
     /// The images of the first `cameras` cameras as functions of `density`,
     /// frozen at this estimator's decisions (one `Vec` per camera, row-major).
     pub fn images_with<R: Real>(&self, density: &Grid<R>, cameras: usize) -> Vec<Vec<R>> {
+        let t = Instant::now();
         let powers = self.photon_powers(density);
+        let t1 = t.elapsed().as_secs_f64();
         let multiple = self.multiple_with(|p| powers[p]);
+        let t2 = t.elapsed().as_secs_f64();
         let depths = self.light_depths(density);
+        let t3 = t.elapsed().as_secs_f64();
         let rays = self.camera_rays(density, Some(&self.scene.density), depths.as_ref());
-        (0..cameras.min(self.scene.cameras.len()))
+        let out = (0..cameras.min(self.scene.cameras.len()))
             .map(|c| rays.image(&self.scene.cameras[c], self.first_pixel[c], multiple.as_ref().map(|m| &m[c])))
-            .collect()
+            .collect();
+        let t4 = t.elapsed().as_secs_f64();
+        if std::env::var("DP_TIMING").is_ok() {
+            eprintln!("images_with: powers {t1:.3} gather {:.3} depths {:.3} camera {:.3}", t2 - t1, t3 - t2, t4 - t3);
+        }
+        out
     }
 }

@@ -11,7 +11,10 @@
 //! The kernel weights do not depend on the camera and are computed once
 //! ([`Kernel`]); each camera then only scales and adds them. The node grid
 //! is the density's voxel centres, coarsened where the radius is so large
-//! that a photon would touch more than about 5^3 nodes.
+//! that a photon would touch more than about 5^3 nodes. Only the nodes some
+//! photon deposits on hold a value ([`Estimate`]): at 128^3 they are a
+//! tenth of the grid, and in dual numbers a dense grid per camera would
+//! cost gigabytes.
 
 use super::photons::Photon;
 use crate::ad::Real;
@@ -25,6 +28,11 @@ use rayon::prelude::*;
 pub struct SplatGeometry {
     /// A zero grid whose geometry the estimates use.
     pub nodes: Grid<f64>,
+    /// Per node, its slot among the nodes photons deposit on ([`NO_SLOT`]
+    /// where none does); set by [`SplatGeometry::kernel`].
+    slots: Grid<u32>,
+    /// Number of slots.
+    used: usize,
     /// Kernel radius (world units, > 0).
     pub radius: f64,
     /// Node spacing along x, y, z.
@@ -75,8 +83,9 @@ impl SplatGeometry {
         };
         let shape = [axis(2), axis(1), axis(0)];
         let nodes = Grid::new(density.lo, density.hi, shape, vec![0.0; shape.iter().product()]);
+        let slots = Grid::new(density.lo, density.hi, shape, vec![NO_SLOT; shape.iter().product()]);
         let cell = nodes.voxel_size();
-        SplatGeometry { nodes, radius, cell }
+        SplatGeometry { nodes, slots, used: 0, radius, cell }
     }
 
     /// The node index range `lo..hi` along axis `a` (0 = x) within the radius of `x`.
@@ -125,8 +134,34 @@ impl SplatGeometry {
         }
     }
 
-    /// The kernel weights of all photons (parallel, deterministic).
-    pub fn kernel(&self, photons: &[Photon]) -> Kernel {
+    /// Number of nodes that hold a value (slots).
+    pub fn used(&self) -> usize {
+        self.used
+    }
+
+    /// The slot of node `n` (flat index); only for nodes a deposit touches.
+    #[inline]
+    pub fn slot(&self, n: usize) -> usize {
+        self.slots.data[n] as usize
+    }
+
+    /// The kernel weights of all photons (parallel, deterministic); numbers
+    /// the nodes they touch, in node order.
+    pub fn kernel(&mut self, photons: &[Photon]) -> Kernel {
+        let kernel = self.weights(photons);
+        self.slots.data.iter_mut().for_each(|s| *s = NO_SLOT);
+        for &n in &kernel.nodes {
+            self.slots.data[n as usize] = 0;
+        }
+        self.used = 0;
+        for s in self.slots.data.iter_mut().filter(|s| **s != NO_SLOT) {
+            *s = self.used as u32;
+            self.used += 1;
+        }
+        kernel
+    }
+
+    fn weights(&self, photons: &[Photon]) -> Kernel {
         let parts: Vec<(Vec<usize>, Vec<u32>, Vec<f32>)> = photons
             .par_chunks(1024)
             .map(|chunk| {
@@ -160,7 +195,7 @@ impl SplatGeometry {
         cameras: &[Vec3],
         albedo: f64,
         g: f64,
-    ) -> Vec<Grid<f64>> {
+    ) -> Vec<Estimate<'_, f64>> {
         self.estimate_with(photons, |p| photons[p].power, kernel, cameras, albedo, g)
     }
 
@@ -174,7 +209,7 @@ impl SplatGeometry {
         cameras: &[Vec3],
         albedo: f64,
         g: f64,
-    ) -> Vec<Grid<R>> {
+    ) -> Vec<Estimate<'_, R>> {
         let [nz, ny, nx] = self.nodes.shape;
         let plane = ny * nx;
         let n_slabs = nz.div_ceil(SLAB);
@@ -190,20 +225,30 @@ impl SplatGeometry {
                 slab.push(p as u32);
             }
         }
+        // The slots of slab s are first_slot[s]..first_slot[s + 1] (slots follow node order).
+        let mut first_slot = vec![0usize; n_slabs + 1];
+        for (n, &slot) in self.slots.data.iter().enumerate() {
+            if slot != NO_SLOT {
+                first_slot[n / plane / SLAB + 1] += 1;
+            }
+        }
+        for s in 0..n_slabs {
+            first_slot[s + 1] += first_slot[s];
+        }
         let slabs: Vec<Vec<R>> = (0..cameras.len() * n_slabs)
             .into_par_iter()
             .map(|task| {
                 let (cam, s) = (task / n_slabs, task % n_slabs);
-                let first = s * SLAB * plane;
-                let mut slab = vec![R::cst(0.0); ((s + 1) * SLAB).min(nz) * plane - first];
+                let (first, last) = (s * SLAB * plane, ((s + 1) * SLAB).min(nz) * plane);
+                let mut slab = vec![R::cst(0.0); first_slot[s + 1] - first_slot[s]];
                 for &p in &reach[s] {
                     let Some(phase) = phase_towards(&photons[p as usize], &cameras[cam], g) else {
                         continue;
                     };
                     let value = power(p as usize) * (albedo * phase);
                     for (n, w) in kernel.deposits(p as usize) {
-                        if let Some(v) = n.checked_sub(first).and_then(|i| slab.get_mut(i)) {
-                            *v += value * w;
+                        if (first..last).contains(&n) {
+                            slab[self.slot(n) - first_slot[s]] += value * w;
                         }
                     }
                 }
@@ -212,10 +257,39 @@ impl SplatGeometry {
             .collect();
         slabs
             .chunks(n_slabs)
-            .map(|cam_slabs| {
-                let data: Vec<R> = cam_slabs.iter().flatten().copied().collect();
-                Grid::new(self.nodes.lo, self.nodes.hi, self.nodes.shape, data)
-            })
+            .map(|cam_slabs| Estimate { slots: &self.slots, values: cam_slabs.iter().flatten().copied().collect() })
             .collect()
+    }
+}
+
+/// Slot of a node no photon deposits on.
+pub const NO_SLOT: u32 = u32::MAX;
+
+/// A photon estimate towards one camera: values on the nodes photons
+/// deposit on, 0 on every other node, trilinear in between.
+#[derive(Clone, Debug)]
+pub struct Estimate<'a, R> {
+    /// Per node, its slot in `values` ([`NO_SLOT`]: the value is 0).
+    pub slots: &'a Grid<u32>,
+    /// One value per slot.
+    pub values: Vec<R>,
+}
+
+impl<R: Real> Estimate<'_, R> {
+    /// The trilinear value at `p` (0 outside the box).
+    #[inline]
+    pub fn at(&self, p: &Vec3) -> R {
+        let Some((index, weights)) = self.slots.trilinear(p) else { return R::cst(0.0) };
+        let value = |n: usize| match self.slots.data[n] {
+            NO_SLOT => R::cst(0.0),
+            slot => self.values[slot as usize],
+        };
+        R::weighted_sum8(index.map(value), weights)
+    }
+
+    /// The same estimate with other values on the same slots.
+    pub fn with_values<S>(&self, values: Vec<S>) -> Estimate<'_, S> {
+        assert_eq!(values.len(), self.values.len(), "one value per slot");
+        Estimate { slots: self.slots, values }
     }
 }

@@ -132,28 +132,49 @@ impl<T: Copy> Grid<T> {
     }
 }
 
-impl<R: Real> Grid<R> {
-    /// The trilinear value at `p` (0 outside the box).
-    #[inline]
-    pub fn at(&self, p: &Vec3) -> R {
-        let Some((lo_i, step, f)) = self.axes(p) else { return R::cst(0.0) };
+impl<T: Copy> Grid<T> {
+    /// The flat indices and weights of the trilinear value at `p`, or
+    /// `None` outside the box. The weights are formed the same way for every
+    /// grid, so equal values give bit-identical lookups.
+    #[inline(always)]
+    pub fn trilinear(&self, p: &Vec3) -> Option<([usize; 8], [f64; 8])> {
+        let (lo_i, step, f) = self.axes(p)?;
         let (sx, sy, sz) = (step[0], step[1] * self.shape[2], step[2] * self.shape[1] * self.shape[2]);
         let base = self.index(lo_i[2], lo_i[1], lo_i[0]);
-        let d = &self.data;
-        // Weights in f64 first: 8 products of R by f64, the cheapest form for duals.
         let (gx, gy, gz) = (1.0 - f[0], 1.0 - f[1], 1.0 - f[2]);
         let (w00, w10, w01, w11) = (gy * gz, f[1] * gz, gy * f[2], f[1] * f[2]);
-        let values = [
-            d[base],
-            d[base + sx],
-            d[base + sy],
-            d[base + sy + sx],
-            d[base + sz],
-            d[base + sz + sx],
-            d[base + sz + sy],
-            d[base + sz + sy + sx],
+        let index = [
+            base,
+            base + sx,
+            base + sy,
+            base + sy + sx,
+            base + sz,
+            base + sz + sx,
+            base + sz + sy,
+            base + sz + sy + sx,
         ];
         let weights = [gx * w00, f[0] * w00, gx * w10, f[0] * w10, gx * w01, f[0] * w01, gx * w11, f[0] * w11];
+        Some((index, weights))
+    }
+}
+
+impl<R: Real> Grid<R> {
+    /// The trilinear value at `p` (0 outside the box).
+    #[inline(always)]
+    pub fn at(&self, p: &Vec3) -> R {
+        let Some((index, weights)) = self.trilinear(p) else { return R::cst(0.0) };
+        // Weights in f64 first: 8 products of R by f64, the cheapest form for duals.
+        let d = &self.data;
+        let values = [
+            d[index[0]],
+            d[index[1]],
+            d[index[2]],
+            d[index[3]],
+            d[index[4]],
+            d[index[5]],
+            d[index[6]],
+            d[index[7]],
+        ];
         R::weighted_sum8(values, weights)
     }
 }
