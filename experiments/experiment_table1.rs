@@ -56,13 +56,13 @@ struct Args {
     /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
     #[arg(long, default_value_t = 1.0)]
     lr_final: f64,
-    /// Take each update's image residual from a second, independent render (removes the squared loss's
-    /// noise bias; one more primal render per update).
-    #[arg(long)]
+    /// Take each update's image residual from a second, independent render: removes the squared loss's
+    /// noise bias at one more primal render per update (`--decorrelate false`: the paper's loss as it is).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     decorrelate: bool,
     /// Per-voxel refinement updates after training (0: none): each hull voxel's density times its own factor,
     /// fitted by reverse mode.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 400)]
     refine: usize,
     /// Adam step of the refinement's log-factors.
     #[arg(long, default_value_t = 0.02)]
@@ -79,6 +79,14 @@ struct Args {
     /// Share of the updates made at half resolution (coarse to fine).
     #[arg(long, default_value_t = 0.8)]
     coarse_fraction: f64,
+    /// Stop training after this many seconds (at most --iterations updates; --coarse-fraction then
+    /// shares the time). Default: none up to 64^3, 300 s above, so that --res 128 ends within 10 minutes.
+    #[arg(long)]
+    time_budget: Option<f64>,
+    /// Stop the refinement after this many seconds (at most --refine updates). Default: none up to
+    /// 64^3, 120 s above.
+    #[arg(long)]
+    refine_budget: Option<f64>,
     /// Extra training cameras on the far side of the circle (not the paper's rig: a study of how much
     /// four views constrain the density).
     #[arg(long, default_value_t = 0)]
@@ -114,6 +122,11 @@ struct Manifest<'a> {
     decoder_parameters: usize,
 }
 
+/// Default training budget above 64^3 (seconds).
+const LARGE_TRAIN_BUDGET: f64 = 300.0;
+/// Default refinement budget above 64^3 (seconds).
+const LARGE_REFINE_BUDGET: f64 = 120.0;
+
 fn main() -> std::process::ExitCode {
     dualphoton::error::exit_code(run(Args::parse()))
 }
@@ -126,6 +139,10 @@ fn run(mut args: Args) -> Result<()> {
         args.weight_directions = 4;
         (args.fit_photons, args.fit_spp) = (20_000, 2);
         args.refine = args.refine.min(3);
+    }
+    if args.res > 64 {
+        args.time_budget = args.time_budget.or(Some(LARGE_TRAIN_BUDGET));
+        args.refine_budget = args.refine_budget.or(Some(LARGE_REFINE_BUDGET));
     }
     let started = Instant::now();
     std::fs::create_dir_all(&args.out)?;
@@ -160,6 +177,7 @@ fn run(mut args: Args) -> Result<()> {
         spp: args.spp,
         seed: args.seed,
         coarse_fraction: args.coarse_fraction,
+        time_budget: args.time_budget,
         ..TrainSettings::default()
     };
     let mut settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
@@ -171,6 +189,7 @@ fn run(mut args: Args) -> Result<()> {
         spp: args.spp,
         decorrelate: args.decorrelate,
         seed: args.seed,
+        time_budget: args.refine_budget,
     };
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
     let mut outputs = Outputs::create(&args.out)?;
@@ -195,6 +214,8 @@ fn run(mut args: Args) -> Result<()> {
     let fit = fit_quality(&scene, &r.estimated, FitTarget::Truth(&truth), n_train, &fit_settings)?;
     write_rows(&args.out.join("fit_quality.csv"), &fit)?;
     let mean_err = (rows[1].mean - rows[2].mean).abs() / rows[2].mean;
+    let trained = r.log.iter().filter(|row| row.iteration < args.iterations).count();
+    let refined = r.log.len() - trained;
     let max_err = (rows[1].max - rows[2].max).abs() / rows[2].max;
     let mut csv = String::from("row,mean,max,paper_mean,paper_max\n");
     let mut md = format!(
@@ -211,14 +232,16 @@ fn run(mut args: Args) -> Result<()> {
         "\n| measure | ours | target |\n|---|---|---|\n| mean-density error | {:.1} % | <= 2 % (paper 3.5 %) |\n| max-density error | {:.1} % | <= 10 % (paper 19.5 %) |\n\
          | mass error delta | {:+.1} % | |\n| voxel relative L1 error epsilon | {eps:.3} | <= 0.3 |\n| Pearson r | {pr:.3} | >= 0.9 |\n\
          | held-out camera 4 relative RMSE | {:.1} % | <= 5 % |\n\n\
-         Estimator `{}`, {n_train} training cameras, {} updates, then {} per-voxel refinement updates (reverse mode), {} photons and {} spp per update, decoder: {} parameters, latent 64. Wall time {:.0} s ({} threads).\n",
+         Estimator `{}`, {n_train} training cameras, {} updates{}, then {} per-voxel refinement updates{} (reverse mode), {} photons and {} spp per update, decoder: {} parameters, latent 64. Wall time {:.0} s ({} threads).\n",
         100.0 * mean_err,
         100.0 * max_err,
         100.0 * delta,
         100.0 * held,
         estimator.name(),
-        args.iterations,
-        args.refine,
+        trained,
+        args.time_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
+        refined,
+        args.refine_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
         args.photons,
         args.spp,
         r.model.decoder.param_count(),

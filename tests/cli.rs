@@ -157,6 +157,8 @@ fn bad_fields_are_errors() {
         ("typo", Box::new(|s| s["lights"][0]["intesity"] = json!(3.0)), "intesity"),
         ("missing", Box::new(|s| s["volume"].as_object_mut().unwrap().remove("g").map(|_| ()).unwrap()), "volume.g"),
         ("radius", Box::new(|s| s["render"]["kernel_radius"] = json!(0.0)), "render.kernel_radius"),
+        ("shadow_cell", Box::new(|s| s["render"]["shadow_cell"] = json!(0)), "render.shadow_cell"),
+        ("photon_step", Box::new(|s| s["render"]["photon_step"] = json!(-0.01)), "render.photon_step"),
     ];
     for (name, mutate, field) in cases {
         let mut scene = valid_scene();
@@ -183,6 +185,7 @@ fn file_errors_name_the_field_by_its_path() {
         ("type_render", Box::new(|s| s["render"] = json!(5)), "render"),
         ("type_photons", Box::new(|s| s["render"]["photons"] = json!(-5)), "render.photons"),
         ("type_density", Box::new(|s| s["volume"]["density"] = json!(3)), "volume.density"),
+        ("type_shadows", Box::new(|s| s["render"]["shadows"] = json!("soft")), "render.shadows"),
         // Missing required fields.
         ("missing_position", Box::new(|s| remove(&mut s["lights"][0], "position")), "lights[0].position"),
         ("missing_fov", Box::new(|s| remove(&mut s["cameras"][1], "fov_y_deg")), "cameras[1].fov_y_deg"),

@@ -19,7 +19,7 @@ use dualphoton::recon::train::TrainSettings;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::render_photon;
-use dualphoton::scene::{file, rig, Scene};
+use dualphoton::scene::{file, rig, Scene, Shadows};
 use dualphoton::volume::Grid;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -79,6 +79,10 @@ enum Command {
         /// Samples per pixel of the path tracer (default: render.path_spp, else 256).
         #[arg(long)]
         path_spp: Option<u32>,
+        /// The lights' transmittance: auto (light-depth grids unless the medium is too thick for them),
+        /// grid, or marched (a shadow ray from every sample: exact, slower; for checks).
+        #[arg(long, value_enum)]
+        shadows: Option<Shadows>,
         /// Fixed PNG white point (radiance mapped to full white); default per image.
         #[arg(long)]
         white: Option<f64>,
@@ -157,11 +161,12 @@ enum Command {
         /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
         #[arg(long, default_value_t = 1.0)]
         lr_final: f64,
-        /// Take each update's image residual from a second, independent render (no noise bias; costs one more render).
-        #[arg(long)]
+        /// Take each update's image residual from a second, independent render: removes the squared loss's
+        /// noise bias at one more primal render per update (`--decorrelate false`: the paper's loss as it is).
+        #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
         decorrelate: bool,
         /// Per-voxel refinement updates after training (0: none; reverse mode).
-        #[arg(long, default_value_t = 200)]
+        #[arg(long, default_value_t = 400)]
         refine: usize,
         /// Penalty on the refinement's mean squared log-factor.
         #[arg(long, default_value_t = 0.0)]
@@ -234,7 +239,7 @@ fn main() -> ExitCode {
 
 fn run(command: Command) -> Result<()> {
     match command {
-        Command::Render { scene, out, method, seed, threads, photons, radius, step, spp, path_spp, white } => {
+        Command::Render { scene, out, method, seed, threads, photons, radius, step, spp, path_spp, shadows, white } => {
             set_threads(threads)?;
             let mut scene = file::load(&scene)?;
             let r = &mut scene.render;
@@ -244,6 +249,7 @@ fn run(command: Command) -> Result<()> {
             r.step = step.or(r.step);
             r.spp = spp.unwrap_or(r.spp);
             r.path_spp = path_spp.unwrap_or(r.path_spp);
+            r.shadows = shadows.unwrap_or(r.shadows);
             file::validate(&scene)?;
             if let Some(w) = white {
                 if !(w.is_finite() && w > 0.0) {

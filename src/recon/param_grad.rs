@@ -39,11 +39,7 @@ pub fn latent_exact(level: &Level, model: &Model, frozen: &Frozen, lanes: usize)
                     }
                 })
                 .collect();
-            let t = std::time::Instant::now();
             let density = tangent_grid(level, model, &z, &w);
-            if std::env::var("DP_TIMING").is_ok() {
-                eprintln!("decoder {:.3}", t.elapsed().as_secs_f64());
-            }
             let (_, d) = directional(frozen, &density, &level.targets);
             grad.extend_from_slice(&d[..K.min(n - first)]);
         }

@@ -114,7 +114,7 @@ pub fn reconstruct(
 
     let train_settings = &settings.train;
     let total = train_settings.iterations + settings.refine.updates;
-    let mut eta = eta_for(problem, &model, train_settings, settings.refine.updates);
+    let mut eta = eta_for(problem, &model, train_settings, &settings.refine);
     let mut log = vec![];
     let mut snapshots = vec![];
     let camera = settings.snapshot_camera;
@@ -153,12 +153,15 @@ pub fn reconstruct(
 
 /// The ETA of `settings` on `problem`; times one primal render per level
 /// only when training will switch from half to full resolution.
-fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings, refine: usize) -> Eta {
+fn eta_for(problem: &Problem, model: &Model, settings: &TrainSettings, refine: &RefineSettings) -> Eta {
     let has_half = settings.coarse_fraction > 0.0 && Level::half(problem, &model.mask).is_some();
     let coarse = coarse_updates(settings, has_half);
     let switches = settings.time_budget.is_none() && coarse > 0 && coarse < settings.iterations;
     let ratio = if switches { fine_over_coarse(problem, model, settings).unwrap_or(1.0) } else { 1.0 };
-    Eta::new(settings.iterations, coarse, refine, ratio, settings.time_budget)
+    // A cap on the whole run needs a budget for both parts (none for refinement when it makes no update).
+    let refine_budget = if refine.updates == 0 { Some(0.0) } else { refine.time_budget };
+    let budget = settings.time_budget.zip(refine_budget).map(|(t, r)| t + r);
+    Eta::new(settings.iterations, coarse, refine.updates, ratio, budget)
 }
 
 /// `im` enlarged by pixel replication to `width` (a coarse update's image next to full-size ones).

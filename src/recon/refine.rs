@@ -38,11 +38,22 @@ pub struct RefineSettings {
     pub decorrelate: bool,
     /// Seed of the updates' renders.
     pub seed: u64,
+    /// Stop after this many seconds (at most `updates`), if given.
+    pub time_budget: Option<f64>,
 }
 
 impl Default for RefineSettings {
     fn default() -> Self {
-        RefineSettings { updates: 0, lr: 0.02, penalty: 0.0, photons: 50_000, spp: 2, decorrelate: false, seed: 0 }
+        RefineSettings {
+            updates: 0,
+            lr: 0.02,
+            penalty: 0.0,
+            photons: 50_000,
+            spp: 2,
+            decorrelate: false,
+            seed: 0,
+            time_budget: None,
+        }
     }
 }
 
@@ -70,6 +81,9 @@ pub fn refine(
         d
     };
     for u in 0..settings.updates {
+        if settings.time_budget.is_some_and(|b| start.elapsed().as_secs_f64() >= b) {
+            break;
+        }
         let density = density_of(&s);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);

@@ -263,21 +263,12 @@ impl<'a> Frozen<'a> {
     /// The images of the first `cameras` cameras as functions of `density`,
     /// frozen at this estimator's decisions (one `Vec` per camera, row-major).
     pub fn images_with<R: Real>(&self, density: &Grid<R>, cameras: usize) -> Vec<Vec<R>> {
-        let t = Instant::now();
         let powers = self.photon_powers(density);
-        let t1 = t.elapsed().as_secs_f64();
         let multiple = self.multiple_with(|p| powers[p]);
-        let t2 = t.elapsed().as_secs_f64();
         let depths = self.light_depths(density);
-        let t3 = t.elapsed().as_secs_f64();
         let rays = self.camera_rays(density, Some(&self.scene.density), depths.as_ref());
-        let out = (0..cameras.min(self.scene.cameras.len()))
+        (0..cameras.min(self.scene.cameras.len()))
             .map(|c| rays.image(&self.scene.cameras[c], self.first_pixel[c], multiple.as_ref().map(|m| &m[c])))
-            .collect();
-        let t4 = t.elapsed().as_secs_f64();
-        if std::env::var("DP_TIMING").is_ok() {
-            eprintln!("images_with: powers {t1:.3} gather {:.3} depths {:.3} camera {:.3}", t2 - t1, t3 - t2, t4 - t3);
-        }
-        out
+            .collect()
     }
 }

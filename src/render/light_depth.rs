@@ -1,16 +1,17 @@
 //! Light transmittance for the camera rays from a grid (docs/DESIGN.md §2):
-//! per light, the optical depth from the centre of every voxel a camera
-//! ray can read to the light, marched once per render. Camera-ray samples
-//! read it trilinearly and take `exp(-depth)`. Marching a shadow ray from
-//! every sample of every camera ray costs samples x steps x shadow steps
-//! density lookups, most of them repeating what the neighbouring samples
-//! just did; the grid costs voxels x shadow steps, once. The price is the
-//! interpolation between voxel centres, a bias measured against the path
-//! tracer (results/bench_render).
+//! per light, the optical depth from every node a camera ray can read to
+//! the light, marched once per render. Camera-ray samples read it
+//! trilinearly and take `exp(-depth)`. Marching a shadow ray from every
+//! sample of every camera ray costs samples x steps x shadow steps density
+//! lookups, most of them repeating what the neighbouring samples just did;
+//! the grid costs nodes x shadow steps, once. The price is the
+//! interpolation between nodes, a bias measured against the path tracer
+//! (results/bench_render) and avoided where the medium is too thick for it
+//! ([`crate::scene::Shadows::Auto`]).
 //!
 //! The depth is linear in the density, so its derivatives are exact and
 //! cheap: forward mode marches the same steps in dual numbers, reverse mode
-//! sends each voxel's depth adjoint back along the same steps
+//! sends each node's depth adjoint back along the same steps
 //! ([`LightDepth::adjoint`]).
 
 use super::march::Marcher;
@@ -50,7 +51,7 @@ pub struct LightDepth {
     seed: u64,
 }
 
-/// Voxel nodes per parallel task.
+/// Nodes per parallel task.
 const CHUNK: usize = 256;
 
 impl LightDepth {
