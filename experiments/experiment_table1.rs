@@ -178,7 +178,6 @@ fn run(mut args: Args) -> Result<()> {
         seed: args.seed,
         coarse_fraction: args.coarse_fraction,
         time_budget: args.time_budget,
-        ..TrainSettings::default()
     };
     let mut settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
     settings.refine = RefineSettings {
