@@ -11,7 +11,7 @@
 //!   (default, and one node per voxel) against marched shadow rays, for
 //!   single scattering alone (the only order it enters) and for orders 1-3,
 //!   against references of the same orders; and a thick plume (the built-in
-//!   one blurred, about a quarter of the box) seen by all five cameras;
+//!   one blurred, an eighth of the box) seen by all five cameras;
 //! - `summary.md`, `manifest.json`;
 //! - `reference_<res>/`: the reference images (rendered once, reused when
 //!   their manifest matches).

@@ -91,7 +91,7 @@ pub fn two_light_blob(n: usize, g: f64, max_order: u32, res: usize) -> Scene {
 
 /// The built-in plume of `seed`, blurred by a Gaussian of 3 voxels (at
 /// 64^3; scaled with the resolution) and rescaled to the plume's maximum: a
-/// thicker, smoother smoke that fills about a quarter of the box, for
+/// thicker, smoother smoke that fills about an eighth of the box (12 % at 64^3), for
 /// timing the renderer where the built-in plume is sparse.
 pub fn thick_plume(res: usize, seed: u64) -> Grid<f64> {
     use crate::data::plume::{plume, CUTOFF, PLUME_MAX};
