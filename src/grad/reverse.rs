@@ -164,14 +164,14 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
         / targets.iter().map(|t| t.data.len()).sum::<usize>().max(1) as f64;
     let mut rng = Rng::new(subset.seed, Purpose::Gradient, 0);
 
-    // Leaves: voxels 0..V, then the estimate's nodes camera by camera.
+    // Leaves: voxels 0..V, then the estimate's slots camera by camera.
     let leaf_density = leaf_grid(density, 0);
     let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
     let nodes = multiple.as_ref().map_or(0, |m| m[0].values.len());
     let leaf_multiple: Option<Vec<Estimate<Var>>> = multiple.as_ref().map(|estimates| {
         estimates.iter().enumerate().map(|(c, e)| e.with_values(leaves(&e.values, voxels + c * nodes))).collect()
     });
-    // Then the light-depth grids, light by light (a voxel-sized block each).
+    // Then the light-depth grids, light by light (a block of `depth_nodes` each).
     let first_depth = voxels + nodes * scene.cameras.len();
     let depths = frozen.light_depths(density);
     let depth_nodes = frozen.light_depth().map_or(0, |d| d.grid_len());
