@@ -171,6 +171,7 @@ fn run(mut args: Args) -> Result<()> {
         lr_latent: args.lr_latent,
         lr_weights: args.lr_weights,
         sparsity: args.sparsity,
+        latent_penalty: 0.0,
         lr_final: args.lr_final,
         decorrelate: args.decorrelate,
         photons: args.photons,

@@ -33,12 +33,14 @@
 
 mod fluid;
 mod noise;
+pub mod variation;
 
 use crate::math::Vec3;
 use crate::volume::Grid;
 use fluid::{Field, Fluid, Settings};
 use noise::Noise;
 use rayon::prelude::*;
+pub use variation::{Unusual, Variation};
 
 /// Largest density of the plume (the paper's ground-truth maximum, 1.3585).
 pub const PLUME_MAX: f64 = 1.36;
@@ -112,7 +114,35 @@ pub fn plume_stats(grid: &Grid<f64>) -> PlumeStats {
 /// assert!((g.max_value() - 1.36).abs() < 1e-9);
 /// ```
 pub fn plume(res: usize, seed: u64) -> Grid<f64> {
-    sample(&Smoke::new(seed), res.max(1))
+    sample(&Smoke::new(seed, &Variation::default()), res.max(1))
+}
+
+/// [`plume`] with the simulation knobs of `variation` instead of the
+/// built-in plume's (the same grid for [`Variation::default`]). Errors name
+/// a bad knob.
+///
+/// ```
+/// use dualphoton::data::plume::{plume, plume_with, Variation};
+/// assert_eq!(plume_with(8, 3, &Variation::default())?.data, plume(8, 3).data);
+/// # Ok::<(), dualphoton::error::Error>(())
+/// ```
+pub fn plume_with(res: usize, seed: u64, variation: &Variation) -> crate::error::Result<Grid<f64>> {
+    variation.validate()?;
+    Ok(sample(&Smoke::new(seed, variation), res.max(1)))
+}
+
+/// The plume of an [`Unusual`] case at `res`^3 (the smooth one blurred by a
+/// Gaussian of `3 res / 64` voxels and rescaled to [`PLUME_MAX`]).
+pub fn unusual_plume(res: usize, case: Unusual) -> Grid<f64> {
+    let v = case.variation();
+    let g = sample(&Smoke::new(case.seed(), &v), res.max(1));
+    if case != Unusual::Smooth {
+        return g;
+    }
+    let mut g = crate::volume::blur::gaussian_blur(&g, 3.0 * res as f64 / 64.0);
+    let scale = PLUME_MAX / g.max_value().max(f64::MIN_POSITIVE);
+    g.data.iter_mut().for_each(|v| *v = if *v * scale < CUTOFF { 0.0 } else { *v * scale });
+    g
 }
 
 /// `smoke` at the voxel centres of a `(res, res, res)` grid, scaled and cut.
@@ -151,16 +181,22 @@ struct Smoke {
 }
 
 impl Smoke {
-    /// Simulates the plume of `seed` and fits its tone.
-    fn new(seed: u64) -> Self {
-        let set = settings();
-        let head = set.cells[1] as f64 - 0.09 * SIM_RES;
+    /// Simulates the plume of `seed` with the knobs of `variation` and fits its tone.
+    fn new(seed: u64, variation: &Variation) -> Self {
+        let set = settings(variation);
+        let head = (variation.head + 0.5) * SIM_RES;
         let mut fluid = Fluid::new(set, seed);
-        // Capture the plume mid-rise: stop when the head nears the top (the
-        // cap on steps is only a guard; plumes arrive in 40-60 steps).
-        for _ in 0..200 {
+        // Capture the plume mid-rise: stop when the head reaches `head` (the
+        // cap on steps is only a guard; plumes arrive in 40-60 steps), then
+        // run on for the overrun.
+        let mut after = None; // steps since the head arrived
+        for _ in 0..200 + variation.overrun {
             fluid.step();
-            if fluid.top(0.05) >= head {
+            after = match after {
+                Some(n) => Some(n + 1),
+                None => (fluid.top(0.05) >= head).then_some(0),
+            };
+            if after >= Some(variation.overrun) {
                 break;
             }
         }
@@ -312,22 +348,29 @@ fn power_law_exponent(a: f64, b: f64, mean: f64) -> f64 {
 /// The simulation, in grid units (cells of 1/48 of the box, unit time).
 /// The knobs were tuned by eye against smoke-plume footage: a narrow,
 /// steady jet at the source that breaks into puffs and widens upwards.
-fn settings() -> Settings {
-    let (nx, ny) = (31, 48);
+/// `variation` sets the sources, buoyancy, turbulence, drafts and width.
+fn settings(variation: &Variation) -> Settings {
+    let v = variation;
+    let (nx, ny) = (v.width, 48);
+    let centre = nx as f64 / 2.0;
     Settings {
         cells: [nx, ny, nx],
         dt: 2.0,
-        buoyancy: 0.06,
-        confinement: 0.2,
-        // y = -0.39 in the world, radius 0.052.
-        source: Vec3::new(nx as f64 / 2.0, 0.11 * SIM_RES, nx as f64 / 2.0),
-        source_radius: 2.5,
+        buoyancy: v.buoyancy,
+        confinement: v.confinement,
+        // y = -0.39 in the world (built-in: radius 0.052 at the centre).
+        sources: v
+            .sources
+            .iter()
+            .map(|s| (Vec3::new(centre + s.x * SIM_RES, 0.11 * SIM_RES, centre + s.z * SIM_RES), s.radius))
+            .collect(),
         source_density: 1.0,
         inflow: 2.0,
         pulse: 0.5,
         sway: 0.25,
-        draft: 1.2,
-        stir: 0.3,
+        draft: v.draft,
+        lean: Vec3::new(v.lean[0], 0.0, v.lean[1]),
+        stir: v.stir,
         sweeps: 20,
         omega: 1.7,
     }
@@ -342,7 +385,7 @@ mod tests {
     fn shared() -> &'static (Smoke, Grid<f64>) {
         static PLUME: OnceLock<(Smoke, Grid<f64>)> = OnceLock::new();
         PLUME.get_or_init(|| {
-            let smoke = Smoke::new(0);
+            let smoke = Smoke::new(0, &Variation::default());
             let grid = sample(&smoke, 64);
             (smoke, grid)
         })
@@ -485,5 +528,19 @@ mod tests {
             crate::io::png::write_preview(&path, w, n, &img, Some(1.0)).unwrap();
             println!("{}: {:?}", path.display(), plume_stats(&g));
         }
+    }
+
+    #[test]
+    fn knobs_change_the_plume_and_an_overrun_reaches_the_top() {
+        let base = Variation::sample(variation::TRAIN_SEEDS.start);
+        let a = plume_with(24, 5, &base).unwrap();
+        let b = plume_with(24, 5, &Variation { sources: Variation::sample(7).sources, ..base.clone() }).unwrap();
+        assert_ne!(a.data, b.data);
+        let top =
+            |g: &Grid<f64>| (0..24).rev().find(|&j| (0..24 * 24).any(|c| g.data[g.index(c / 24, j, c % 24)] > 0.0));
+        let low = plume_with(24, 5, &Variation { head: -0.05, ..base.clone() }).unwrap();
+        let cut = plume_with(24, 5, &Variation { head: 0.41, overrun: 25, ..base }).unwrap();
+        assert!(top(&low) < top(&cut), "{:?} {:?}", top(&low), top(&cut));
+        assert!(plume_with(24, 5, &Variation { width: 99, ..Variation::default() }).is_err());
     }
 }

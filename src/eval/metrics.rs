@@ -97,6 +97,37 @@ pub fn hull_stats(d: &[f64], mask: &[bool]) -> HullStats {
     HullStats { mean: v.iter().sum::<f64>() / v.len().max(1) as f64, max: v.iter().fold(0.0, |a: f64, &b| a.max(b)) }
 }
 
+/// Means over the 2x2x2 blocks of a cubic `res`^3 grid `d` (C order), in C
+/// order over the `(res/2)^3` blocks (an odd last layer is left out): the
+/// density at the scale a few views of `res` pixels can resolve.
+///
+/// ```
+/// let d: Vec<f64> = (0..64).map(|v| v as f64).collect();
+/// let b = dualphoton::eval::metrics::block_means(&d, 4);
+/// assert_eq!(b.len(), 8);
+/// assert_eq!(b[0], (0.0 + 1.0 + 4.0 + 5.0 + 16.0 + 17.0 + 20.0 + 21.0) / 8.0);
+/// ```
+pub fn block_means(d: &[f64], res: usize) -> Vec<f64> {
+    let h = res / 2;
+    let mut out = vec![0.0; h * h * h];
+    for (b, o) in out.iter_mut().enumerate() {
+        let (k, j, i) = (b / (h * h), (b / h) % h, b % h);
+        let mut s = 0.0;
+        for c in 0..8 {
+            let (z, y, x) = (2 * k + c / 4, 2 * j + (c / 2) % 2, 2 * i + c % 2);
+            s += d[(z * res + y) * res + x];
+        }
+        *o = s / 8.0;
+    }
+    out
+}
+
+/// The 2x2x2 blocks of a `res`^3 `mask` (as [`block_means`]) at least half inside it.
+pub fn block_mask(mask: &[bool], res: usize) -> Vec<bool> {
+    let m: Vec<f64> = mask.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
+    block_means(&m, res).iter().map(|&f| f >= 0.5).collect()
+}
+
 /// Pearson correlation of `a` and `b` over the `mask` voxels.
 pub fn pearson(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
     let idx: Vec<usize> = (0..a.len()).filter(|&i| mask[i]).collect();

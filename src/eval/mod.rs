@@ -3,6 +3,7 @@
 //! renderers (single-scattering quadrature, energy balance), small test
 //! scenes and the stability study's cases.
 
+pub mod density;
 pub mod energy;
 pub mod fit_quality;
 pub mod metrics;

@@ -244,6 +244,14 @@ pub fn write_f32(path: &Path, shape: &[usize], data: &[f64]) -> Result<()> {
     write_raw(path, "<f4", shape, &body)
 }
 
+/// Writes `data` (C order) as a float64 `.npy` of the given shape: exact
+/// (weights and checkpoints).
+pub fn write_f64(path: &Path, shape: &[usize], data: &[f64]) -> Result<()> {
+    assert_eq!(shape.iter().product::<usize>(), data.len());
+    let body: Vec<u8> = data.iter().flat_map(|&v| v.to_le_bytes()).collect();
+    write_raw(path, "<f8", shape, &body)
+}
+
 /// Writes `data` (C order) as a uint8 `.npy` of the given shape.
 pub fn write_u8(path: &Path, shape: &[usize], data: &[u8]) -> Result<()> {
     assert_eq!(shape.iter().product::<usize>(), data.len());

@@ -53,6 +53,9 @@ pub(super) enum Act {
     Leaky,
     /// `s * x` if `x > 0`, else 0 (the last layer, `s` = output scale).
     ReluScaled(f64),
+    /// `s * x` if `x > 0`, else `s * leak * x`: the last layer while a
+    /// prior is trained, so that no voxel's output dies.
+    LeakyScaled(f64, f64),
 }
 
 impl Act {
@@ -64,6 +67,8 @@ impl Act {
             Act::Leaky => x * LEAKY_SLOPE,
             Act::ReluScaled(s) if x.re() > 0.0 => x * s,
             Act::ReluScaled(_) => R::cst(0.0),
+            Act::LeakyScaled(s, _) if x.re() > 0.0 => x * s,
+            Act::LeakyScaled(s, leak) => x * (s * leak),
         }
     }
     /// The derivative, from the activation's output `y` (whose sign is the
@@ -75,6 +80,8 @@ impl Act {
             Act::Leaky => LEAKY_SLOPE,
             Act::ReluScaled(s) if y > 0.0 => s,
             Act::ReluScaled(_) => 0.0,
+            Act::LeakyScaled(s, _) if y > 0.0 => s,
+            Act::LeakyScaled(s, leak) => s * leak,
         }
     }
 }

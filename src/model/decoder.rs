@@ -57,6 +57,9 @@ pub struct Decoder {
     pub(super) out_scale: f64,
     /// Length of the parameter vector.
     pub(super) n_params: usize,
+    /// Slope of the last layer below 0, relative (0: ReLU, the density
+    /// model; > 0 only while a prior is trained).
+    pub(super) out_leak: f64,
 }
 
 impl Decoder {
@@ -99,7 +102,7 @@ impl Decoder {
             off += conv.params();
             convs.push(conv);
         }
-        Ok(Decoder { latent, res, c0, convs, out_scale: OUT_SCALE, n_params: off })
+        Ok(Decoder { latent, res, c0, convs, out_scale: OUT_SCALE, n_params: off, out_leak: 0.0 })
     }
 
     /// The default decoder for a `res^3` grid (`res` = 4 * 2^L with
@@ -135,6 +138,44 @@ impl Decoder {
             e *= 2;
         }
         Decoder::new(64, res, &channels)
+    }
+
+    /// The same decoder with `scale` density per unit of the last ReLU's
+    /// output (a prior that must reach the densest voxels of many plumes
+    /// wants a larger one than [`OUT_SCALE`]).
+    pub fn with_out_scale(mut self, scale: f64) -> Decoder {
+        self.out_scale = scale;
+        self
+    }
+
+    /// The same decoder with a leaky last layer (`leak` times the slope
+    /// below 0; 0 gives back the ReLU). With a ReLU, a voxel whose output
+    /// is pushed below 0 early in training gets no gradient again; a prior
+    /// trained on mostly empty plumes loses every voxel that way. A prior is
+    /// trained leaky and used with the ReLU, which differs only where the
+    /// leaky output is negative (there the density is 0).
+    pub fn with_out_leak(mut self, leak: f64) -> Decoder {
+        self.out_leak = leak;
+        self
+    }
+
+    /// The last layer's activation.
+    pub(super) fn out_act(&self) -> super::conv::Act {
+        if self.out_leak > 0.0 {
+            super::conv::Act::LeakyScaled(self.out_scale, self.out_leak)
+        } else {
+            super::conv::Act::ReluScaled(self.out_scale)
+        }
+    }
+
+    /// Values of the base grid (`4^3 x C0`): the linear layer's rows.
+    pub fn base_values(&self) -> usize {
+        BASE.pow(3) * self.c0
+    }
+
+    /// The `channels` argument of [`Decoder::new`] that made this decoder.
+    pub fn channels(&self) -> Vec<usize> {
+        self.convs.iter().map(|c| c.c_in).collect()
     }
 
     /// Size of the latent `z`.
@@ -180,7 +221,13 @@ impl Decoder {
                 c.params(),
                 TAPS * c.c_in * c.c_out,
                 c.c_out,
-                if last { format!("ReLU x {}", self.out_scale) } else { format!("LeakyReLU {LEAKY_SLOPE}") }
+                if last && self.out_leak > 0.0 {
+                    format!("LeakyReLU {} x {}", self.out_leak, self.out_scale)
+                } else if last {
+                    format!("ReLU x {}", self.out_scale)
+                } else {
+                    format!("LeakyReLU {LEAKY_SLOPE}")
+                }
             );
         }
         s += &format!("total    {} params", self.n_params);
@@ -260,6 +307,7 @@ mod tests {
         assert_eq!(Decoder::paper_small(128).unwrap().param_count(), 32289);
         let d = Decoder::paper_small(64).unwrap();
         assert_eq!(d.describe().lines().count(), 6);
+        assert_eq!(d.channels(), vec![4, 16, 8, 4]);
         assert_eq!(d.init(1).len(), d.param_count());
     }
 

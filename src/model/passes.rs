@@ -53,7 +53,7 @@ impl Decoder {
             w.iter().all(|x| (*x - R::cst(x.re())).is_exact_zero()).then(|| w.iter().map(R::re).collect());
         let mut acts = vec![base];
         for (l, c) in self.convs.iter().enumerate() {
-            let act = if l + 1 == self.convs.len() { Act::ReluScaled(self.out_scale) } else { Act::Leaky };
+            let act = if l + 1 == self.convs.len() { self.out_act() } else { Act::Leaky };
             let bias = &w[c.b_off..c.b_off + c.c_out];
             let (lin, lout) = (&layouts[l], &layouts[l + 1]);
             let next = match &plain {
@@ -142,7 +142,7 @@ impl Decoder {
         let acts = self.activations(z, w, &layouts);
         let mut gw = vec![0.0; self.n_params];
         // g: dL/d(pre-activation) of the current layer's output, stored like it.
-        let last = Act::ReluScaled(self.out_scale);
+        let last = self.out_act();
         let density = &acts[self.convs.len()];
         let mut g: Vec<f64> = (0..mask.len()).filter(|&v| mask[v]).map(|v| grad_out[v]).collect();
         for (gv, &d) in g.iter_mut().zip(density) {
@@ -212,7 +212,9 @@ mod tests {
         let deep = Decoder::new(6, 32, &[3, 4, 2]).unwrap();
         let scattered: Vec<bool> =
             normals(14, 32 * 32 * 32).iter().zip(ball(32, 9.0)).map(|(&u, b)| b || u > 2.5).collect();
-        vec![(Decoder::paper_small(16).unwrap(), ball(16, 6.5)), (deep, scattered)]
+        // A leaky last layer (as a prior is trained with) takes the same paths.
+        let leaky = Decoder::new(6, 16, &[3, 4]).unwrap().with_out_leak(0.05).with_out_scale(0.3);
+        vec![(Decoder::paper_small(16).unwrap(), ball(16, 6.5)), (deep, scattered), (leaky, ball(16, 7.5))]
     }
 
     /// Some coordinates of w: linear weight and bias, a weight and a bias of

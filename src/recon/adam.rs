@@ -41,6 +41,16 @@ impl Adam {
         }
     }
 
+    /// The moments and per-coordinate step counts (to save a checkpoint).
+    pub fn state(&self) -> (&[f64], &[f64], &[u32]) {
+        (&self.m, &self.v, &self.t)
+    }
+
+    /// Adam resumed from a saved [`Adam::state`]; `None` if the lengths differ.
+    pub fn resume(lr: f64, m: Vec<f64>, v: Vec<f64>, t: Vec<u32>) -> Option<Adam> {
+        (m.len() == v.len() && v.len() == t.len()).then(|| Adam { m, v, t, ..Adam::new(0, lr) })
+    }
+
     /// Applies a dense gradient.
     pub fn step(&mut self, params: &mut [f64], grad: &[f64]) {
         let index: Vec<usize> = (0..params.len()).collect();

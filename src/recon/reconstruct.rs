@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::model::Decoder;
 use crate::model::Model;
+use crate::prior::Prior;
 use crate::recon::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
 use crate::render::render_photon;
 use crate::scene::Scene;
@@ -57,6 +58,10 @@ pub struct ReconstructSettings {
     pub snapshot_camera: usize,
     /// Iterations whose image of the snapshot camera is kept (the last one is added).
     pub snapshot_iterations: Vec<usize>,
+    /// A learned prior: its decoder and weights replace the per-scene
+    /// decoder and the latent starts at the prior's mean (none: the paper's
+    /// per-scene decoder, initialised from `init_seed`).
+    pub prior: Option<Prior>,
 }
 
 impl ReconstructSettings {
@@ -74,6 +79,7 @@ impl ReconstructSettings {
             snapshot_iterations: paper::FIG6_ITERATIONS.to_vec(),
             refine: RefineSettings { seed: train.seed, ..RefineSettings::default() },
             train,
+            prior: None,
         }
     }
 }
@@ -82,12 +88,7 @@ impl ReconstructSettings {
 /// (the first `targets.len()` of the scene's) as its mask, a decoder for the
 /// scene's cubic grid, latent and weights initialised from `init_seed`.
 pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result<Model> {
-    let n_train = targets.len();
-    let mask =
-        visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
-    if !mask.iter().any(|&m| m) {
-        return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
-    }
+    let mask = hull(scene, targets)?;
     let res = scene.density.shape[0];
     if scene.density.shape != [res, res, res] {
         return Err(Error(format!("volume.density: the decoder needs a cubic grid, got {:?}", scene.density.shape)));
@@ -96,6 +97,28 @@ pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result
     let w = decoder.init(init_seed);
     let z = decoder.init_latent(init_seed);
     Ok(Model { decoder, z, w, mask })
+}
+
+/// The model before fitting with a learned prior: the visual hull as in
+/// [`initial_model`], the prior's decoder and weights, the latent at the
+/// prior's mean (0: its latents are whitened). Errors if the prior does
+/// not decode the scene's grid.
+pub fn prior_model(scene: &Scene, targets: &[Image], prior: &Prior) -> Result<Model> {
+    prior.check_grid(scene.density.shape)?;
+    let mask = hull(scene, targets)?;
+    let z = vec![0.0; prior.decoder.latent()];
+    Ok(Model { decoder: prior.decoder.clone(), z, w: prior.w.clone(), mask })
+}
+
+/// The visual hull of the training cameras (the first `targets.len()`).
+fn hull(scene: &Scene, targets: &[Image]) -> Result<Vec<bool>> {
+    let n_train = targets.len();
+    let mask =
+        visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
+    if !mask.iter().any(|&m| m) {
+        return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
+    }
+    Ok(mask)
 }
 
 /// Reconstructs the density of `problem.scene` (cameras
@@ -109,7 +132,10 @@ pub fn reconstruct(
 ) -> Result<Reconstruction> {
     let start = Instant::now();
     let (scene, targets) = (problem.scene, problem.targets);
-    let mut model = initial_model(scene, targets, settings.init_seed)?;
+    let mut model = match &settings.prior {
+        Some(prior) => prior_model(scene, targets, prior)?,
+        None => initial_model(scene, targets, settings.init_seed)?,
+    };
     let initial = model.density(&scene.density);
 
     let train_settings = &settings.train;

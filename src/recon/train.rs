@@ -66,6 +66,11 @@ pub struct TrainSettings {
     /// added to the image loss (0: none, the paper's loss). Its gradient is
     /// exact for every estimator (the decoder's vector-Jacobian product).
     pub sparsity: f64,
+    /// Weight of a Gaussian penalty on the latent, `latent_penalty * s *
+    /// mean_k z_k^2` with `s` the mean square of the training target pixels
+    /// (so the weight is relative to the image loss): the prior of a
+    /// learned decoder, whose latents are whitened (0: none).
+    pub latent_penalty: f64,
 }
 
 impl Default for TrainSettings {
@@ -83,6 +88,7 @@ impl Default for TrainSettings {
             lr_final: 1.0,
             decorrelate: false,
             sparsity: 0.0,
+            latent_penalty: 0.0,
         }
     }
 }
@@ -132,6 +138,9 @@ pub fn train(
     if !(settings.lr_final.is_finite() && settings.lr_final > 0.0) {
         return Err(Error(format!("lr_final: {} must be finite and > 0", settings.lr_final)));
     }
+    if !(settings.latent_penalty.is_finite() && settings.latent_penalty >= 0.0) {
+        return Err(Error(format!("latent_penalty: {} must be finite and >= 0", settings.latent_penalty)));
+    }
     let start = Instant::now();
     let mut adam_z = Adam::new(model.z.len(), settings.lr_latent);
     let mut adam_w = Adam::new(model.w.len(), settings.lr_weights);
@@ -140,6 +149,8 @@ pub fn train(
     let coarse_updates = coarse_updates(settings, coarse.is_some());
     let mut rng = Rng::new(settings.seed, Purpose::Gradient, 1_000_000);
     let estimator = settings.gradient;
+    let pixels = fine.targets.iter().map(|t| t.data.len()).sum::<usize>().max(1) as f64;
+    let target_power = fine.targets.iter().flat_map(|t| &t.data).map(|v| v * v).sum::<f64>() / pixels;
     for it in 0..settings.iterations {
         let elapsed = start.elapsed().as_secs_f64();
         let coarse_now = match settings.time_budget {
@@ -177,6 +188,13 @@ pub fn train(
         };
         if settings.sparsity > 0.0 {
             add_sparsity_gradient(model, settings.sparsity, &mut g.latent, &mut g.weights);
+        }
+        if settings.latent_penalty > 0.0 {
+            let k = model.z.len().max(1) as f64;
+            let scale = 2.0 * settings.latent_penalty * target_power / k;
+            for (&i, v) in g.latent.indices.iter().zip(&mut g.latent.values) {
+                *v += scale * model.z[i];
+            }
         }
         adam_z.step_sparse(&mut model.z, &g.latent.indices, &g.latent.values);
         adam_w.step_sparse(&mut model.w, &g.weights.indices, &g.weights.values);

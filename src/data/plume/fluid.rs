@@ -132,10 +132,9 @@ pub struct Settings {
     pub buoyancy: f64,
     /// Vorticity confinement strength (dimensionless, Fedkiw's epsilon in cells).
     pub confinement: f64,
-    /// Source centre (grid units).
-    pub source: Vec3,
-    /// Source radius (cells).
-    pub source_radius: f64,
+    /// Source balls: centre (grid units) and radius (cells), all at one
+    /// height (the turbulence ramps up from the first one's).
+    pub sources: Vec<(Vec3, f64)>,
     /// Density written into the source each step (before noise).
     pub source_density: f64,
     /// Upward speed imposed in the source (cells / time).
@@ -146,6 +145,8 @@ pub struct Settings {
     pub sway: f64,
     /// Speed of the random, slowly changing horizontal draft of the air (cells / time).
     pub draft: f64,
+    /// Steady horizontal wind the draft blows around (cells / time; y ignored): the plume's lean.
+    pub lean: Vec3,
     /// Amplitude of the random initial air motion (cells / time).
     pub stir: f64,
     /// Red-black SOR sweeps per pressure solve.
@@ -277,19 +278,22 @@ impl Fluid {
     /// strength pulses and the jet sways sideways.
     fn source(&mut self) {
         let s = &self.set;
-        let (c, r, t) = (s.source, s.source_radius, self.time);
+        let t = self.time;
         let n = &self.noise;
         // Slow random functions of time (period ~ 12 time units).
         let slow = n.slow.at3(&Vec3::new(t / 12.0, 0.37, 0.61));
         let pulse = (1.0 + s.pulse * slow.y).max(0.0);
         let sway = Vec3::new(slow.x, 0.0, slow.z) * s.sway;
+        // The strongest of the balls' weights (they rarely overlap).
         let ball = |p: Vec3| {
-            let x = (p - c).norm_squared() / (r * r);
-            if x < 1.0 {
-                1.0 - x
-            } else {
-                0.0
-            }
+            s.sources.iter().fold(0.0f64, |b, (c, r)| {
+                let x = (p - c).norm_squared() / (r * r);
+                if x < 1.0 {
+                    b.max(1.0 - x)
+                } else {
+                    b
+                }
+            })
         };
         let d = &self.density;
         self.density.data = fill(d.dims, |k, j, i| {
@@ -370,14 +374,16 @@ impl Fluid {
             let len = eta.norm();
             // Turbulence grows as the plume rises: full strength from a third
             // of the height above the source.
-            let ramp = ((j as f64 - self.set.source.y) / (ny as f64 / 3.0)).clamp(0.0, 1.0);
+            let ramp =
+                ((j as f64 - self.set.sources.first().map_or(0.0, |s| s.0.y)) / (ny as f64 / 3.0)).clamp(0.0, 1.0);
             let conf = if len > 1e-12 { (eta / len).cross(&curl[at(k, j, i)]) * (eps * ramp) } else { Vec3::zeros() };
             let q =
                 Vec3::new(i as f64, j as f64, k as f64) / 10.0 + Vec3::new(0.0, -self.time / 30.0, self.time / 25.0);
             // Horizontal air motion relaxes towards a random, slowly changing
             // draft, calmer near the floor.
-            let wind = self.noise.draft.at3(&q).component_mul(&Vec3::new(1.0, 0.0, 1.0))
-                * (self.set.draft * (0.3 + 0.7 * ramp));
+            let flat = Vec3::new(1.0, 0.0, 1.0);
+            let wind = self.noise.draft.at3(&q).component_mul(&flat) * (self.set.draft * (0.3 + 0.7 * ramp))
+                + self.set.lean.component_mul(&flat) * (0.3 + 0.7 * ramp);
             let here = cv[at(k, j, i)];
             let draft = (wind - Vec3::new(here.x, 0.0, here.z)) / DRAFT_TIME;
             conf + draft + Vec3::new(0.0, self.set.buoyancy * d.data[at(k, j, i)], 0.0)
@@ -517,13 +523,13 @@ mod tests {
             dt: 0.5,
             buoyancy: 2.0,
             confinement: 0.3,
-            source: Vec3::new(6.0, 3.0, 6.0),
-            source_radius: 2.5,
+            sources: vec![(Vec3::new(6.0, 3.0, 6.0), 2.5)],
             source_density: 1.0,
             inflow: 1.0,
             pulse: 0.5,
             sway: 0.5,
             draft: 0.02,
+            lean: Vec3::zeros(),
             stir: 0.3,
             sweeps: 200,
             omega: 1.8,

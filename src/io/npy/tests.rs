@@ -68,6 +68,17 @@ fn round_trip_f32() {
 }
 
 #[test]
+fn round_trip_f64_is_exact() {
+    let dir = std::env::temp_dir().join(format!("dualphoton-npy64-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("a.npy");
+    let v = vec![0.1, -1e-300, f64::MAX, 1.0 / 3.0];
+    write_f64(&p, &[4], &v).unwrap();
+    let a = read(&p, "test").unwrap();
+    assert_eq!((a.shape, a.data, a.element), (vec![4], v, Element::F64));
+}
+
+#[test]
 fn fortran_order_is_transposed_into_c_order() {
     let c = parse(&npy(1, "<f8", false, "(2, 3, 4)", &le8(&values()))).unwrap();
     let f = parse(&npy(1, "<f8", true, "(2, 3, 4)", &le8(&fortran_values()))).unwrap();
