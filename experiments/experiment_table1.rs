@@ -4,19 +4,23 @@
 
 use clap::Parser;
 use dualphoton::error::Result;
-use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
-use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1, rel_rmse};
+use dualphoton::eval::density::{density_metrics, DensityMetrics};
+use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, CameraFit, FitQualitySettings, FitTarget};
+use dualphoton::eval::metrics::{hull_stats, rel_rmse};
 use dualphoton::io::figures::{table1_chart, Table1Bars};
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::rows::write_rows;
+use dualphoton::prior::Prior;
 use dualphoton::recon::estimator::{Estimator, EstimatorSettings, WeightDirections};
+use dualphoton::recon::methods::{prior_method, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::paper::{self, TABLE1};
 use dualphoton::recon::problem::{paper_problem, target_render, PaperProblem, Problem};
-use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings, Reconstruction};
 use dualphoton::recon::refine::RefineSettings;
 use dualphoton::recon::train::TrainSettings;
 use dualphoton::scene::{file, rig};
+use dualphoton::volume::Grid;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -100,6 +104,12 @@ struct Args {
     /// Samples per pixel of those renders.
     #[arg(long, default_value_t = 8)]
     fit_spp: u32,
+    /// The learned prior reconstructed beside the paper's method: its directory, or `none` (the paper's
+    /// method only).
+    #[arg(long, default_value = "models/plume64")]
+    prior: String,
+    #[command(flatten)]
+    prior_fit: PriorFitArgs,
     /// Output directory.
     #[arg(long, default_value = "results/table1")]
     out: PathBuf,
@@ -120,6 +130,43 @@ struct Manifest<'a> {
     hull_voxels: usize,
     decoder: String,
     decoder_parameters: usize,
+    prior_decoder_parameters: Option<usize>,
+}
+
+/// One method's reconstruction and its measures.
+struct MethodRun {
+    r: Reconstruction,
+    is_prior: bool,
+    d: DensityMetrics,
+    held: f64,
+    fit: Vec<CameraFit>,
+    wall_s: f64,
+}
+
+/// Reconstructs `problem` with `settings`, writes its log, arrays and
+/// figures into `dir`, and measures it against `truth`.
+fn run_method(
+    problem: &Problem,
+    settings: &ReconstructSettings,
+    dir: &std::path::Path,
+    truth: &Grid<f64>,
+    n_train: usize,
+    fit_settings: &FitQualitySettings,
+) -> Result<MethodRun> {
+    let t0 = Instant::now();
+    let mut outputs = Outputs::create(dir)?;
+    let r = reconstruct(problem, settings, &mut |p| {
+        outputs.log(p.row);
+        eprint!("\r{p}   ");
+    })?;
+    eprintln!();
+    outputs.finish(&r, problem)?;
+    let wall_s = t0.elapsed().as_secs_f64();
+    let d = density_metrics(&r.estimated, truth, &r.model.mask);
+    let held = rel_rmse(&r.final_images[n_train].data, &problem.held_out[0].data);
+    eprintln!("judging the fit: truth and estimate at {} photons, {} spp ...", fit_settings.photons, fit_settings.spp);
+    let fit = fit_quality(problem.scene, &r.estimated, FitTarget::Truth(truth), n_train, fit_settings)?;
+    Ok(MethodRun { is_prior: settings.prior.is_some(), r, d, held, fit, wall_s })
 }
 
 /// Default training budget above 64^3 (seconds).
@@ -192,31 +239,44 @@ fn run(mut args: Args) -> Result<()> {
         time_budget: args.refine_budget,
     };
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
-    let mut outputs = Outputs::create(&args.out)?;
-    let r = reconstruct(&problem, &settings, &mut |p| {
-        outputs.log(p.row);
-        eprint!("\r{p}   ");
-    })?;
-    eprintln!();
-    outputs.finish(&r, &problem)?;
+    let prior = match args.prior.as_str() {
+        "none" => None,
+        dir if args.smoke => {
+            eprintln!(
+                "--smoke: the prior ({dir}) decodes 64^3 grids, not 16^3; the smoke run checks the paper's method only"
+            );
+            None
+        }
+        dir => {
+            let p = Prior::load(std::path::Path::new(dir))?;
+            p.check_grid(scene.density.shape)?;
+            Some(p)
+        }
+    };
+    let fit_settings = FitQualitySettings { photons: args.fit_photons, spp: args.fit_spp, ..Default::default() };
+    eprintln!("the paper's method: a decoder trained from scratch on this scene ...");
+    let paper_run = run_method(&problem, &settings, &args.out, &truth, n_train, &fit_settings)?;
+    write_rows(&args.out.join("fit_quality.csv"), &paper_run.fit)?;
+    let prior_run = match prior {
+        Some(prior) => {
+            eprintln!("the learned prior ({}): its 64-d latent, then the refinement ...", prior.dir.display());
+            let renders =
+                UpdateRenders { photons: args.photons, spp: args.spp, decorrelate: args.decorrelate, seed: args.seed };
+            let s = prior_method(prior, &args.prior_fit, renders, scene.render.photons, scene.render.spp);
+            let dir = args.out.join("prior");
+            let run = run_method(&problem, &s, &dir, &truth, n_train, &fit_settings)?;
+            std::fs::copy(dir.join("density_estimated.npy"), args.out.join("density_estimated_prior.npy"))?;
+            write_rows(&args.out.join("fit_quality_prior.csv"), &run.fit)?;
+            Some(run)
+        }
+        None => None,
+    };
 
     // Table 1 and the error measures.
+    let r = &paper_run.r;
     let mask = &r.model.mask;
     let hull_voxels = mask.iter().filter(|&&m| m).count();
     let rows = [hull_stats(&r.initial.data, mask), hull_stats(&r.estimated.data, mask), hull_stats(&truth.data, mask)];
-    let sum = |d: &[f64]| d.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| v).sum::<f64>();
-    let delta = (sum(&r.estimated.data) - sum(&truth.data)) / sum(&truth.data);
-    let eps = rel_l1(&r.estimated.data, &truth.data, mask);
-    let pr = pearson(&truth.data, &r.estimated.data, mask);
-    let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
-    eprintln!("judging the fit: truth and estimate at {} photons, {} spp ...", args.fit_photons, args.fit_spp);
-    let fit_settings = FitQualitySettings { photons: args.fit_photons, spp: args.fit_spp, ..Default::default() };
-    let fit = fit_quality(&scene, &r.estimated, FitTarget::Truth(&truth), n_train, &fit_settings)?;
-    write_rows(&args.out.join("fit_quality.csv"), &fit)?;
-    let mean_err = (rows[1].mean - rows[2].mean).abs() / rows[2].mean;
-    let trained = r.log.iter().filter(|row| row.iteration < args.iterations).count();
-    let refined = r.log.len() - trained;
-    let max_err = (rows[1].max - rows[2].max).abs() / rows[2].max;
     let mut csv = String::from("row,mean,max,paper_mean,paper_max\n");
     let mut md = format!(
         "# Table 1: density over the {hull_voxels} hull voxels ({}^3 grid; the paper kept 68,771 of 128^3)\n\n| | mean | max | paper mean | paper max |\n|---|---|---|---|---|\n",
@@ -227,37 +287,88 @@ fn run(mut args: Args) -> Result<()> {
         let _ = writeln!(csv, "{name},{:.6},{:.6},{pm},{px}", s.mean, s.max);
         let _ = writeln!(md, "| {name} | {:.4} | {:.4} | {pm} | {px} |", s.mean, s.max);
     }
+    if let Some(p) = &prior_run {
+        let s = hull_stats(&p.r.estimated.data, &p.r.model.mask);
+        let _ = writeln!(csv, "after fitting the learned prior,{:.6},{:.6},,", s.mean, s.max);
+        let _ = writeln!(md, "| after fitting the learned prior | {:.4} | {:.4} | | |", s.mean, s.max);
+    }
+    let runs: Vec<(&str, &MethodRun)> =
+        std::iter::once(("paper's method", &paper_run)).chain(prior_run.iter().map(|p| ("learned prior", p))).collect();
+    let cell = |f: &dyn Fn(&MethodRun) -> String| runs.iter().map(|(_, m)| f(m)).collect::<Vec<_>>().join(" | ");
+    let pct = |v: f64| format!("{:.1} %", 100.0 * v);
+    let _ = write!(
+        md,
+        "\n| measure | {} | target |\n|---{}|---|\n",
+        runs.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(" | "),
+        "|---".repeat(runs.len())
+    );
+    let measures: [(&str, &dyn Fn(&MethodRun) -> String, &str); 11] = [
+        ("mean-density error", &|m| pct(m.d.mean_error.abs()), "<= 2 % (paper 3.5 %)"),
+        ("max-density error", &|m| pct(m.d.max_error.abs()), "<= 10 % (paper 19.5 %)"),
+        ("mass error delta", &|m| format!("{:+.1} %", 100.0 * m.d.mass_error), ""),
+        ("voxel relative L1 error epsilon", &|m| format!("{:.3}", m.d.rel_l1_epsilon), "<= 0.3"),
+        ("Pearson r", &|m| format!("{:.3}", m.d.pearson_r), ">= 0.9"),
+        ("r ceiling (truth vs truth blurred by 1 voxel)", &|m| format!("{:.3}", m.d.blur_ceiling_r), ""),
+        ("2x2x2 blocks: epsilon", &|m| format!("{:.3}", m.d.block_rel_l1_epsilon), "<= 0.35 (prior)"),
+        ("2x2x2 blocks: Pearson r", &|m| format!("{:.3}", m.d.block_pearson_r), ">= 0.95 (prior)"),
+        ("2x2x2 blocks: max-density error", &|m| format!("{:+.1} %", 100.0 * m.d.block_max_error), "<= 10 % (prior)"),
+        ("held-out camera 4 relative RMSE", &|m| pct(m.held), "<= 5 %"),
+        ("wall time", &|m| format!("{:.0} s", m.wall_s), ""),
+    ];
+    for (name, f, target) in measures {
+        let _ = writeln!(md, "| {name} | {} | {target} |", cell(f));
+    }
+    let trained = r.log.iter().filter(|row| row.iteration < args.iterations).count();
     let _ = writeln!(
         md,
-        "\n| measure | ours | target |\n|---|---|---|\n| mean-density error | {:.1} % | <= 2 % (paper 3.5 %) |\n| max-density error | {:.1} % | <= 10 % (paper 19.5 %) |\n\
-         | mass error delta | {:+.1} % | |\n| voxel relative L1 error epsilon | {eps:.3} | <= 0.3 |\n| Pearson r | {pr:.3} | >= 0.9 |\n\
-         | held-out camera 4 relative RMSE | {:.1} % | <= 5 % |\n\n\
-         Estimator `{}`, {n_train} training cameras, {} updates{}, then {} per-voxel refinement updates{} (reverse mode), {} photons and {} spp per update, decoder: {} parameters, latent 64. Wall time {:.0} s ({} threads).\n",
-        100.0 * mean_err,
-        100.0 * max_err,
-        100.0 * delta,
-        100.0 * held,
+        "\nPaper's method: estimator `{}`, {n_train} training cameras, {} updates{}, then {} per-voxel refinement updates{} (reverse mode), {} photons and {} spp per update, decoder: {} parameters, latent 64.",
         estimator.name(),
         trained,
         args.time_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
-        refined,
+        r.log.len() - trained,
         args.refine_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
         args.photons,
         args.spp,
         r.model.decoder.param_count(),
-        started.elapsed().as_secs_f64(),
-        rayon::current_num_threads()
     );
-    let _ = write!(
-        md,
-        "\n## How well the estimate explains the images\n\nRelative RMSE of the estimate's image against the truth's, \
-         both rendered at {} photons and {} spp with the same seed, per pixel and over pixel blocks; in brackets the \
-         noise floor (the truth against itself rendered with a second seed). `fit_quality.csv`.\n\n{}",
-        args.fit_photons,
-        args.fit_spp,
-        fit_quality_markdown(&fit)
-    );
+    if let Some(p) = &prior_run {
+        let f = &args.prior_fit;
+        let _ = writeln!(
+            md,
+            "Learned prior ({}): {} updates of its latent only (`{}`, {:.0} % at half resolution, penalty {}), then {} refinement updates; decoder {} parameters, fixed. Files: `prior/`, `density_estimated_prior.npy`.",
+            args.prior,
+            f.prior_updates,
+            f.prior_estimator.name(),
+            100.0 * f.prior_coarse_fraction,
+            f.prior_penalty,
+            p.r.log.len() - f.prior_updates.min(p.r.log.len()),
+            p.r.model.decoder.param_count(),
+        );
+    }
+    let _ =
+        writeln!(md, "Wall time {:.0} s ({} threads).", started.elapsed().as_secs_f64(), rayon::current_num_threads());
+    for (name, m) in &runs {
+        let _ = write!(
+            md,
+            "\n## How well the estimate explains the images: {name}\n\nRelative RMSE of the estimate's image against the truth's, \
+             both rendered at {} photons and {} spp with the same seed, per pixel and over pixel blocks; in brackets the \
+             noise floor (the truth against itself rendered with a second seed). `fit_quality{}.csv`.\n\n{}",
+            args.fit_photons,
+            args.fit_spp,
+            if m.is_prior { "_prior" } else { "" },
+            fit_quality_markdown(&m.fit)
+        );
+    }
+    let d = &paper_run.d;
+    let (delta, eps, pr, held) = (d.mass_error, d.rel_l1_epsilon, d.pearson_r, paper_run.held);
     let _ = writeln!(csv, "mass_error_delta,{delta:.6},,,\nrel_l1_epsilon,{eps:.6},,,\npearson_r,{pr:.6},,,\nheld_out_rel_rmse,{held:.6},,,");
+    for (suffix, m) in runs.iter().map(|(_, m)| (if m.is_prior { "_prior" } else { "" }, m)) {
+        let d = &m.d;
+        if m.is_prior {
+            let _ = writeln!(csv, "mass_error_delta{suffix},{:.6},,,\nrel_l1_epsilon{suffix},{:.6},,,\npearson_r{suffix},{:.6},,,\nheld_out_rel_rmse{suffix},{:.6},,,", d.mass_error, d.rel_l1_epsilon, d.pearson_r, m.held);
+        }
+        let _ = writeln!(csv, "block_rel_l1_epsilon{suffix},{:.6},,,\nblock_pearson_r{suffix},{:.6},,,\nblock_max_error{suffix},{:.6},,,\nblur_ceiling_r{suffix},{:.6},,,\nwall_s{suffix},{:.1},,,", d.block_rel_l1_epsilon, d.block_pearson_r, d.block_max_error, d.blur_ceiling_r, m.wall_s);
+    }
     std::fs::write(args.out.join("table1.csv"), csv)?;
     std::fs::write(args.out.join("table1.md"), &md)?;
     let bars: Vec<Table1Bars> = rows
@@ -280,6 +391,7 @@ fn run(mut args: Args) -> Result<()> {
         hull_voxels,
         decoder: r.model.decoder.describe(),
         decoder_parameters: r.model.decoder.param_count(),
+        prior_decoder_parameters: prior_run.as_ref().map(|p| p.r.model.decoder.param_count()),
     };
     write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
     print!("{md}");

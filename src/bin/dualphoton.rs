@@ -10,7 +10,9 @@ use dualphoton::grad::{forward_at, voxel_gradient, Estimator, GradOptions, LANES
 use dualphoton::image::Image;
 use dualphoton::io::rows::write_rows;
 use dualphoton::io::{npy, png};
+use dualphoton::prior::{self, Prior};
 use dualphoton::recon::estimator::EstimatorSettings;
+use dualphoton::recon::methods::{prior_method, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::problem::Problem;
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
@@ -177,6 +179,12 @@ enum Command {
         /// Seed of training.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// A learned prior's directory, or `none` for the paper's per-scene decoder. Default: the committed
+        /// prior (models/plume64) when it decodes the scene's grid, else the per-scene decoder.
+        #[arg(long)]
+        prior: Option<String>,
+        #[command(flatten)]
+        prior_fit: PriorFitArgs,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -231,6 +239,44 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+/// The prior `fit` uses, announced on its first line: `none` (the
+/// per-scene decoder), a directory (errors if it cannot be used), or by
+/// default the committed prior when it decodes the scene's grid.
+fn choose_prior(choice: Option<&str>, shape: [usize; 3]) -> Result<Option<Prior>> {
+    let loaded = match choice {
+        Some("none") => {
+            eprintln!("fit: the paper's per-scene decoder (--prior none)");
+            return Ok(None);
+        }
+        Some(dir) => {
+            let p = Prior::load(Path::new(dir))?;
+            p.check_grid(shape)?;
+            p
+        }
+        None => {
+            // The committed prior: beside the working directory, else in the source tree this was built from.
+            let here = PathBuf::from(prior::DEFAULT_DIR);
+            let dir = if here.join("prior.json").exists() {
+                here
+            } else {
+                Path::new(env!("CARGO_MANIFEST_DIR")).join(prior::DEFAULT_DIR)
+            };
+            match Prior::load(&dir).and_then(|p| p.check_grid(shape).map(|()| p)) {
+                Ok(p) => p,
+                Err(e) => {
+                    eprintln!("fit: the paper's per-scene decoder, not the learned prior ({e})");
+                    return Ok(None);
+                }
+            }
+        }
+    };
+    eprintln!(
+        "fit: the learned prior {} (its 64-d latent, then the refinement; --prior none: the per-scene decoder)",
+        loaded.dir.display()
+    );
+    Ok(Some(loaded))
 }
 
 fn main() -> ExitCode {
@@ -304,10 +350,13 @@ fn run(command: Command) -> Result<()> {
             refine_penalty,
             judge_photons,
             seed,
+            prior,
+            prior_fit,
             threads,
         } => {
             set_threads(threads)?;
             let scene = file::load(&scene)?;
+            let prior = choose_prior(prior.as_deref(), scene.density.shape)?;
             file::check_photons(photons, scene.medium.max_order, "--photons")?;
             let all = read_targets(&images, &scene)?;
             if held_out >= scene.cameras.len() {
@@ -340,6 +389,10 @@ fn run(command: Command) -> Result<()> {
                 seed,
                 ..RefineSettings::default()
             };
+            if let Some(prior) = prior {
+                let renders = UpdateRenders { photons, decorrelate, seed, ..UpdateRenders::default() };
+                settings = prior_method(prior, &prior_fit, renders, scene.render.photons, scene.render.spp);
+            }
             let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
             let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;
             let r = reconstruct(&problem, &settings, &mut |p| {

@@ -34,19 +34,33 @@ pub fn loss_curves(log_csv: &Path, out: &Path) -> Result<()> {
 }
 
 /// Fig. 7: ground-truth against estimated density over the hull voxels,
-/// before and after training (at most `max_points` points each, evenly thinned).
+/// before and after training (at most 20,000 points each, evenly thinned).
 pub fn density_scatter(truth: &[f64], before: &[f64], after: &[f64], mask: &[bool], out: &Path) -> Result<()> {
+    let title = "Fig. 7: voxel density, ground truth vs estimate (hull voxels)";
+    estimate_scatter(title, truth, &[("before training", before), ("after training", after)], mask, out)
+}
+
+/// Ground truth against one or more estimates (named) over the `mask`
+/// entries, at most 20,000 points per estimate, evenly thinned; the first
+/// estimate in grey, the others in colour.
+pub fn estimate_scatter(
+    title: &str,
+    truth: &[f64],
+    estimates: &[(&str, &[f64])],
+    mask: &[bool],
+    out: &Path,
+) -> Result<()> {
     let idx: Vec<usize> = (0..truth.len()).filter(|&i| mask[i]).collect();
     let max_points = 20_000;
     let step = idx.len().div_ceil(max_points).max(1);
     let pts = |v: &[f64]| idx.iter().step_by(step).map(|&i| (truth[i], v[i])).collect::<Vec<_>>();
-    let (pb, pa) = (pts(before), pts(after));
-    let hi = pb.iter().chain(&pa).fold(0.0f64, |m, p| m.max(p.0).max(p.1)) * 1.05 + 1e-9;
+    let sets: Vec<Vec<(f64, f64)>> = estimates.iter().map(|(_, v)| pts(v)).collect();
+    let hi = sets.iter().flatten().fold(0.0f64, |m, p| m.max(p.0).max(p.1)) * 1.05 + 1e-9;
     let err = |e: &dyn std::fmt::Display| Error(format!("plot {}: {e}", out.display()));
     let root = SVGBackend::new(out, (640, 640)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut chart = ChartBuilder::on(&root)
-        .caption("Fig. 7: voxel density, ground truth vs estimate (hull voxels)", ("sans-serif", 18))
+        .caption(title, ("sans-serif", 18))
         .margin(16)
         .x_label_area_size(48)
         .y_label_area_size(64)
@@ -54,18 +68,15 @@ pub fn density_scatter(truth: &[f64], before: &[f64], after: &[f64], mask: &[boo
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc("ground truth").y_desc("estimate").draw().map_err(|e| err(&e))?;
     chart.draw_series(LineSeries::new(vec![(0.0, 0.0), (hi, hi)], BLACK.mix(0.5))).map_err(|e| err(&e))?;
-    let before_style = RGBColor(127, 127, 127).mix(0.4).filled();
-    let after_style = RGBColor(214, 39, 40).mix(0.4).filled();
-    chart
-        .draw_series(pb.iter().map(|&p| Circle::new(p, 2, before_style)))
-        .map_err(|e| err(&e))?
-        .label("before training")
-        .legend(move |(x, y)| Circle::new((x + 10, y), 4, before_style));
-    chart
-        .draw_series(pa.iter().map(|&p| Circle::new(p, 2, after_style)))
-        .map_err(|e| err(&e))?
-        .label("after training")
-        .legend(move |(x, y)| Circle::new((x + 10, y), 4, after_style));
+    let colours = [RGBColor(127, 127, 127), RGBColor(214, 39, 40), RGBColor(31, 119, 180), RGBColor(44, 160, 44)];
+    for (k, ((name, _), points)) in estimates.iter().zip(&sets).enumerate() {
+        let style = colours[k % colours.len()].mix(0.4).filled();
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 2, style)))
+            .map_err(|e| err(&e))?
+            .label(*name)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, style));
+    }
     chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))
 }

@@ -10,6 +10,7 @@ pub mod estimator;
 pub mod grad_study;
 pub mod hull;
 pub mod level;
+pub mod methods;
 pub mod outputs;
 pub mod paper;
 pub mod param_grad;

@@ -37,7 +37,13 @@ pub struct PaperProblem {
 
 /// [`PaperProblem`] at `res`^3 from `seed`.
 pub fn paper_problem(res: usize, seed: u64, photons: u64, extra_views: usize) -> PaperProblem {
-    let truth = plume(res, seed);
+    paper_problem_of(plume(res, seed), seed, photons, extra_views)
+}
+
+/// [`PaperProblem`] of any `truth` on the unit box (cubic, `res`^3; images
+/// `res` x `res`), its target images rendered from `seed`.
+pub fn paper_problem_of(truth: Grid<f64>, seed: u64, photons: u64, extra_views: usize) -> PaperProblem {
+    let res = truth.shape[0];
     let mut scene = rig::paper_scene(truth.clone(), res);
     let at = rig::HELD_OUT_CAMERA;
     scene.cameras.splice(at..at, rig::extra_cameras(extra_views, res));

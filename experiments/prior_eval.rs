@@ -1,0 +1,424 @@
+//! Evaluates the learned prior against the paper's per-scene decoder on
+//! plumes no part of training saw: test plumes from the training
+//! distribution (unseen seeds), the Table 1 plume, and plumes deliberately
+//! outside it (three sources, still air, strong turbulence, cut off by the
+//! top of the box, thick and smooth). Every plume is seen by the paper's rig
+//! (4 training cameras, camera 4 held out) and reconstructed by
+//! - `paper`: the per-scene decoder (the main job's default settings),
+//! - `prior`: the prior's latent only (fwd-full over its 64 coordinates),
+//! - `prior_refine`: that, then the per-voxel refinement.
+//!
+//! Resumable: each (plume, method) row is written as it finishes under
+//! `<out>/rows/`, and a later run skips the rows it finds (`--fresh`
+//! recomputes). The estimates are cached under `cache/prior_eval/` for the
+//! slice figures. Writes `<out>/{table.csv, table.md, scatter.svg,
+//! slices_<plume>.svg, manifest.json}`.
+
+use clap::Parser;
+use dualphoton::data::plume::variation::{TEST_SEEDS, VALIDATION_SEEDS};
+use dualphoton::data::plume::{plume, plume_with, unusual_plume, Unusual, Variation};
+use dualphoton::error::{Error, Result};
+use dualphoton::eval::density::{density_metrics, DensityMetrics};
+use dualphoton::eval::metrics::{block_mask, block_means, rel_rmse};
+use dualphoton::image::Image;
+use dualphoton::io::figures::estimate_scatter;
+use dualphoton::io::manifest::write_manifest;
+use dualphoton::io::npy;
+use dualphoton::io::panels::labelled_strip;
+use dualphoton::io::rows::write_rows;
+use dualphoton::prior::Prior;
+use dualphoton::recon::methods::{paper_method, prior_method, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::paper;
+use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::refine::refine;
+use dualphoton::render::render_photon;
+use dualphoton::scene::rig;
+use dualphoton::volume::Grid;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Parser, Serialize)]
+#[command(about = "Evaluate the learned prior against the paper's per-scene decoder on unseen plumes")]
+struct Args {
+    /// Grid resolution (res^3) and image size.
+    #[arg(long, default_value_t = 64)]
+    res: usize,
+    /// Plumes, comma-separated: table1, test0..test99, val0..val99 (validation: for choosing settings,
+    /// never reported as test), three_sources, no_drafts, strong_turbulence, cut_off, smooth; default:
+    /// table1, test0-test7 and the five unusual ones.
+    #[arg(long)]
+    plumes: Option<String>,
+    /// Methods, comma-separated: paper, prior (also writes prior_refine when --prior-refine > 0).
+    #[arg(long, default_value = "paper,prior")]
+    methods: String,
+    /// The prior's directory.
+    #[arg(long, default_value = "models/plume64")]
+    prior: PathBuf,
+    #[command(flatten)]
+    fit: PriorFitArgs,
+    /// Photons per update (both methods).
+    #[arg(long, default_value_t = 50_000)]
+    photons: u64,
+    /// Camera samples per pixel per update.
+    #[arg(long, default_value_t = 2)]
+    spp: u32,
+    /// Independent residual renders (both methods).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    decorrelate: bool,
+    /// Recompute rows that exist.
+    #[arg(long)]
+    fresh: bool,
+    /// Output directory.
+    #[arg(long, default_value = "results/prior_eval")]
+    out: PathBuf,
+}
+
+/// One plume of the evaluation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Which {
+    Table1,
+    Test(u64),
+    Validation(u64),
+    Unusual(Unusual),
+}
+
+impl Which {
+    fn parse(name: &str) -> Result<Which> {
+        let number = |prefix: &str, range: &std::ops::Range<u64>| {
+            name.strip_prefix(prefix).and_then(|n| n.parse::<u64>().ok()).filter(|&n| n < range.end - range.start)
+        };
+        if name == "table1" {
+            return Ok(Which::Table1);
+        }
+        if let Some(n) = number("test", &TEST_SEEDS) {
+            return Ok(Which::Test(n));
+        }
+        if let Some(n) = number("val", &VALIDATION_SEEDS) {
+            return Ok(Which::Validation(n));
+        }
+        Unusual::ALL
+            .iter()
+            .find(|u| u.name() == name)
+            .map(|&u| Which::Unusual(u))
+            .ok_or_else(|| Error(format!("--plumes: unknown plume '{name}'")))
+    }
+
+    fn name(self) -> String {
+        match self {
+            Which::Table1 => "table1".into(),
+            Which::Test(n) => format!("test{n}"),
+            Which::Validation(n) => format!("val{n}"),
+            Which::Unusual(u) => u.name().into(),
+        }
+    }
+
+    /// `training distribution`, `unusual` or `validation`.
+    fn group(self) -> &'static str {
+        match self {
+            Which::Table1 | Which::Test(_) => "training distribution",
+            Which::Validation(_) => "validation",
+            Which::Unusual(_) => "unusual",
+        }
+    }
+
+    fn seed(self) -> u64 {
+        match self {
+            Which::Table1 => 0,
+            Which::Test(n) => TEST_SEEDS.start + n,
+            Which::Validation(n) => VALIDATION_SEEDS.start + n,
+            Which::Unusual(u) => u.seed(),
+        }
+    }
+
+    fn truth(self, res: usize) -> Result<Grid<f64>> {
+        match self {
+            Which::Table1 => Ok(plume(res, 0)),
+            Which::Test(_) | Which::Validation(_) => plume_with(res, self.seed(), &Variation::sample(self.seed())),
+            Which::Unusual(u) => Ok(unusual_plume(res, u)),
+        }
+    }
+}
+
+/// One (plume, method) result.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Row {
+    plume: String,
+    group: String,
+    method: String,
+    hull_voxels: usize,
+    block_pearson_r: f64,
+    block_rel_l1_epsilon: f64,
+    block_max_error: f64,
+    pearson_r: f64,
+    rel_l1_epsilon: f64,
+    max_error: f64,
+    mass_error: f64,
+    held_out_rel_rmse: f64,
+    blur_ceiling_r: f64,
+    wall_s: f64,
+    updates: usize,
+}
+
+impl Row {
+    fn new(which: Which, method: &str, m: &DensityMetrics, held: f64, wall_s: f64, updates: usize) -> Row {
+        Row {
+            plume: which.name(),
+            group: which.group().into(),
+            method: method.into(),
+            hull_voxels: m.hull_voxels,
+            block_pearson_r: m.block_pearson_r,
+            block_rel_l1_epsilon: m.block_rel_l1_epsilon,
+            block_max_error: m.block_max_error,
+            pearson_r: m.pearson_r,
+            rel_l1_epsilon: m.rel_l1_epsilon,
+            max_error: m.max_error,
+            mass_error: m.mass_error,
+            held_out_rel_rmse: held,
+            blur_ceiling_r: m.blur_ceiling_r,
+            wall_s,
+            updates,
+        }
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    dualphoton::error::exit_code(run(Args::parse()))
+}
+
+fn run(args: Args) -> Result<()> {
+    let started = Instant::now();
+    let plumes: Vec<Which> = match &args.plumes {
+        Some(list) => list.split(',').map(|s| Which::parse(s.trim())).collect::<Result<_>>()?,
+        None => std::iter::once(Which::Table1)
+            .chain((0..8).map(Which::Test))
+            .chain(Unusual::ALL.iter().map(|&u| Which::Unusual(u)))
+            .collect(),
+    };
+    let methods: Vec<&str> = args.methods.split(',').map(str::trim).collect();
+    if let Some(m) = methods.iter().find(|m| !["paper", "prior"].contains(m)) {
+        return Err(Error(format!("--methods: unknown method '{m}' (paper, prior)")));
+    }
+    let prior = if methods.contains(&"prior") { Some(Prior::load(&args.prior)?) } else { None };
+    let rows_dir = args.out.join("rows");
+    let cache = PathBuf::from("cache/prior_eval");
+    std::fs::create_dir_all(&rows_dir)?;
+    std::fs::create_dir_all(&cache)?;
+    for (p, &which) in plumes.iter().enumerate() {
+        let wanted: Vec<&str> = methods
+            .iter()
+            .copied()
+            .filter(|m| args.fresh || !rows_dir.join(format!("{}_{m}.json", which.name())).exists())
+            .collect();
+        if wanted.is_empty() {
+            continue;
+        }
+        eprintln!("[{}/{}] {} ({}): rendering the truth ...", p + 1, plumes.len(), which.name(), which.group());
+        let truth = which.truth(args.res)?;
+        let PaperProblem { truth, mut scene, images } = paper_problem_of(truth, which.seed(), paper::TARGET_PHOTONS, 0);
+        target_render(&mut scene, which.seed(), paper::TARGET_PHOTONS);
+        let n_train = rig::HELD_OUT_CAMERA;
+        let (targets, held_out) = images.split_at(n_train);
+        let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
+        let renders =
+            UpdateRenders { photons: args.photons, spp: args.spp, decorrelate: args.decorrelate, seed: which.seed() };
+        let (fp, fs) = (scene.render.photons, scene.render.spp);
+        let final_render = |density: &Grid<f64>, settings: &ReconstructSettings| {
+            let mut s = scene.clone();
+            s.density = density.clone();
+            (s.render.photons, s.render.spp, s.render.seed) = (fp, fs, settings.final_seed);
+            render_photon(&s).images
+        };
+        let save = |method: &str, density: &Grid<f64>, row: &Row| -> Result<()> {
+            let text = serde_json::to_string_pretty(row).map_err(|e| Error(e.to_string()))?;
+            std::fs::write(rows_dir.join(format!("{}_{method}.json", which.name())), text)?;
+            npy::write_f32(&cache.join(format!("{}_{method}.npy", which.name())), &[density.len()], &density.data)
+        };
+        for method in wanted {
+            let t0 = Instant::now();
+            let label = format!("{} {method}", which.name());
+            let progress = |p: &dualphoton::recon::progress::Progress| eprint!("\r{label}: {p}   ");
+            if method == "paper" {
+                let settings = paper_method(renders, fp, fs);
+                let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
+                eprintln!();
+                let m = density_metrics(&r.estimated, &truth, &r.model.mask);
+                let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
+                let row = Row::new(which, "paper", &m, held, t0.elapsed().as_secs_f64(), r.log.len());
+                save("paper", &r.estimated, &row)?;
+                continue;
+            }
+            let Some(prior) = &prior else { continue };
+            let fit = PriorFitArgs { prior_refine: 0, ..args.fit.clone() };
+            let settings = prior_method(prior.clone(), &fit, renders, fp, fs);
+            let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
+            eprintln!();
+            let latent_s = t0.elapsed().as_secs_f64();
+            let m = density_metrics(&r.estimated, &truth, &r.model.mask);
+            let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
+            save("prior", &r.estimated, &Row::new(which, "prior", &m, held, latent_s, r.log.len()))?;
+            if args.fit.prior_refine > 0 {
+                let t1 = Instant::now();
+                let full = prior_method(prior.clone(), &args.fit, renders, fp, fs);
+                let refined = refine(&problem, &r.model, &full.refine, r.log.len(), &mut |row| {
+                    eprint!("\r{label} refine: update {} ({:.0} s)   ", row.iteration, row.wall_s)
+                })?;
+                eprintln!();
+                let images = final_render(&refined, &full);
+                let m = density_metrics(&refined, &truth, &r.model.mask);
+                let held = rel_rmse(&images[n_train].data, &held_out[0].data);
+                let wall = latent_s + t1.elapsed().as_secs_f64();
+                let updates = r.log.len() + args.fit.prior_refine;
+                save("prior_refine", &refined, &Row::new(which, "prior_refine", &m, held, wall, updates))?;
+            }
+        }
+    }
+    let rows = read_rows(&rows_dir, &plumes)?;
+    write_rows(&args.out.join("table.csv"), &rows)?;
+    std::fs::write(args.out.join("table.md"), table_markdown(&rows))?;
+    figures(&args, &plumes, &cache)?;
+    write_manifest(&args.out.join("manifest.json"), &args, started.elapsed().as_secs_f64())?;
+    print!("{}", table_markdown(&rows));
+    Ok(())
+}
+
+/// The rows of `plumes` found in `dir`, in plume then method order.
+fn read_rows(dir: &Path, plumes: &[Which]) -> Result<Vec<Row>> {
+    let mut rows = vec![];
+    for which in plumes {
+        for method in ["paper", "prior", "prior_refine"] {
+            let path = dir.join(format!("{}_{method}.json", which.name()));
+            if let Ok(text) = std::fs::read_to_string(&path) {
+                let row: Row =
+                    serde_json::from_str(&text).map_err(|e| Error(format!("{}: damaged: {e}", path.display())))?;
+                rows.push(row);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// Per-plume rows, then per group and method the mean and the worst.
+fn table_markdown(rows: &[Row]) -> String {
+    let mut md = String::from(
+        "# The learned prior against the paper's per-scene decoder\n\n\
+         Block measures are over 2x2x2 blocks at least half inside the visual hull; voxel measures over the hull \
+         voxels; the ceiling is r of the truth against itself blurred by one voxel.\n\n\
+         | plume | group | method | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | held-out RMSE | wall s |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {:.1} % | {:.0} |",
+            r.plume,
+            r.group,
+            r.method,
+            r.block_pearson_r,
+            r.block_rel_l1_epsilon,
+            100.0 * r.block_max_error,
+            r.pearson_r,
+            r.blur_ceiling_r,
+            r.rel_l1_epsilon,
+            100.0 * r.max_error,
+            100.0 * r.mass_error,
+            100.0 * r.held_out_rel_rmse,
+            r.wall_s
+        );
+    }
+    md += "\n## Mean (worst) per group and method\n\n\
+           | group | method | plumes | block r | block eps | abs block max err | r | eps | abs mass err | held-out RMSE | wall s |\n\
+           |---|---|---|---|---|---|---|---|---|---|---|\n";
+    let mut groups: Vec<&str> = rows.iter().map(|r| r.group.as_str()).collect();
+    groups.dedup();
+    groups.sort();
+    groups.dedup();
+    for g in groups {
+        for method in ["paper", "prior", "prior_refine"] {
+            let sel: Vec<&Row> = rows.iter().filter(|r| r.group == g && r.method == method).collect();
+            if sel.is_empty() {
+                continue;
+            }
+            let n = sel.len() as f64;
+            let mean = |f: &dyn Fn(&Row) -> f64| sel.iter().map(|r| f(r)).sum::<f64>() / n;
+            let lo = |f: &dyn Fn(&Row) -> f64| sel.iter().map(|r| f(r)).fold(f64::INFINITY, f64::min);
+            let hi = |f: &dyn Fn(&Row) -> f64| sel.iter().map(|r| f(r)).fold(f64::NEG_INFINITY, f64::max);
+            let both_lo = |f: &dyn Fn(&Row) -> f64| format!("{:.3} ({:.3})", mean(f), lo(f));
+            let both_hi = |f: &dyn Fn(&Row) -> f64, pct: bool| {
+                if pct {
+                    format!("{:.1} % ({:.1} %)", 100.0 * mean(f), 100.0 * hi(f))
+                } else {
+                    format!("{:.3} ({:.3})", mean(f), hi(f))
+                }
+            };
+            let _ = writeln!(
+                md,
+                "| {g} | {method} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} ({:.0}) |",
+                sel.len(),
+                both_lo(&|r| r.block_pearson_r),
+                both_hi(&|r| r.block_rel_l1_epsilon, false),
+                both_hi(&|r| r.block_max_error.abs(), true),
+                both_lo(&|r| r.pearson_r),
+                both_hi(&|r| r.rel_l1_epsilon, false),
+                both_hi(&|r| r.mass_error.abs(), true),
+                both_hi(&|r| r.held_out_rel_rmse, true),
+                mean(&|r| r.wall_s),
+                hi(&|r| r.wall_s)
+            );
+        }
+    }
+    md
+}
+
+/// The scatter of block densities (truth against each method) for the
+/// first plume, and horizontal slices of truth and estimates for up to
+/// three plumes, from the cached estimates (plumes without them are skipped).
+fn figures(args: &Args, plumes: &[Which], cache: &Path) -> Result<()> {
+    let res = args.res;
+    let load = |which: Which, method: &str| -> Option<Vec<f64>> {
+        npy::read(&cache.join(format!("{}_{method}.npy", which.name())), "estimate").ok().map(|a| a.data)
+    };
+    let methods =
+        [("paper", "paper's method"), ("prior", "prior, latent only"), ("prior_refine", "prior + refinement")];
+    if let Some(&first) = plumes.first() {
+        let truth = first.truth(res)?;
+        let tb = block_means(&truth.data, res);
+        let estimates: Vec<(&str, Vec<f64>)> =
+            methods.iter().filter_map(|(m, label)| load(first, m).map(|d| (*label, block_means(&d, res)))).collect();
+        if !estimates.is_empty() {
+            let occupied: Vec<bool> = tb.iter().map(|&v| v > 0.0).collect();
+            let mask: Vec<bool> =
+                block_mask(&vec![true; res * res * res], res).iter().zip(&occupied).map(|(a, b)| *a && *b).collect();
+            let named: Vec<(&str, &[f64])> = estimates.iter().map(|(n, d)| (*n, d.as_slice())).collect();
+            let title = format!("{}: 2x2x2 block density, truth vs estimates", first.name());
+            estimate_scatter(&title, &tb, &named, &mask, &args.out.join("scatter.svg"))?;
+        }
+    }
+    for &which in plumes.iter().take(3) {
+        let truth = which.truth(res)?;
+        let mut panels: Vec<(Image, String)> = vec![];
+        for frac in [0.3, 0.5, 0.7] {
+            let y = ((frac * res as f64) as usize).min(res - 1);
+            panels.push((slice(&truth.data, res, y), format!("truth, y = {frac}")));
+            for (m, label) in methods {
+                if let Some(d) = load(which, m) {
+                    panels.push((slice(&d, res, y), label.to_string()));
+                }
+            }
+        }
+        if panels.len() > 3 {
+            let refs: Vec<(&Image, String)> = panels.iter().map(|(im, s)| (im, s.clone())).collect();
+            let title = format!("{}: horizontal slices at 30, 50 and 70 % of the height (white = 0.3)", which.name());
+            labelled_strip(&refs, 0.3, &title, &args.out.join(format!("slices_{}.svg", which.name())))?;
+        }
+    }
+    Ok(())
+}
+
+/// The horizontal slice `y` of a `res`^3 grid as an image (x across, z down).
+fn slice(d: &[f64], res: usize, y: usize) -> Image {
+    let data = (0..res * res).map(|p| d[((p / res) * res + y) * res + p % res]).collect();
+    Image { width: res, height: res, data }
+}
