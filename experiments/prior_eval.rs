@@ -10,7 +10,7 @@
 //!
 //! Resumable: each (plume, method) row is written as it finishes under
 //! `<out>/rows/`, and a later run skips the rows it finds (`--fresh`
-//! recomputes). The estimates are cached under `cache/prior_eval/` for the
+//! recomputes). The estimates are cached under `cache/<name of --out>/` for the
 //! slice figures. Writes `<out>/{table.csv, table.md, scatter.svg,
 //! slices_<plume>.svg, manifest.json}`.
 
@@ -27,6 +27,7 @@ use dualphoton::io::npy;
 use dualphoton::io::panels::labelled_strip;
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::Prior;
+use dualphoton::recon::hull::HullSettings;
 use dualphoton::recon::methods::{paper_method, prior_method, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::paper;
 use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
@@ -68,6 +69,12 @@ struct Args {
     /// Independent residual renders (both methods).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     decorrelate: bool,
+    /// Silhouette threshold of the visual hull (fraction of each image's 99.5th-percentile radiance).
+    #[arg(long, default_value_t = dualphoton::recon::hull::SILHOUETTE_THRESHOLD)]
+    hull_threshold: f64,
+    /// Silhouette dilation of the visual hull (pixels).
+    #[arg(long, default_value_t = dualphoton::recon::hull::SILHOUETTE_DILATION)]
+    hull_dilate: usize,
     /// Recompute rows that exist.
     #[arg(long)]
     fresh: bool,
@@ -202,8 +209,10 @@ fn run(args: Args) -> Result<()> {
         return Err(Error(format!("--methods: unknown method '{m}' (paper, prior)")));
     }
     let prior = if methods.contains(&"prior") { Some(Prior::load(&args.prior)?) } else { None };
+    let hull = HullSettings { threshold: args.hull_threshold, dilate: args.hull_dilate };
     let rows_dir = args.out.join("rows");
-    let cache = PathBuf::from("cache/prior_eval");
+    let name = args.out.file_name().map_or("prior_eval".into(), |n| n.to_string_lossy().into_owned());
+    let cache = PathBuf::from("cache").join(name);
     std::fs::create_dir_all(&rows_dir)?;
     std::fs::create_dir_all(&cache)?;
     for (p, &which) in plumes.iter().enumerate() {
@@ -241,7 +250,8 @@ fn run(args: Args) -> Result<()> {
             let label = format!("{} {method}", which.name());
             let progress = |p: &dualphoton::recon::progress::Progress| eprint!("\r{label}: {p}   ");
             if method == "paper" {
-                let settings = paper_method(renders, fp, fs);
+                let mut settings = paper_method(renders, fp, fs);
+                settings.hull = hull;
                 let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
                 eprintln!();
                 let m = density_metrics(&r.estimated, &truth, &r.model.mask);
@@ -252,7 +262,8 @@ fn run(args: Args) -> Result<()> {
             }
             let Some(prior) = &prior else { continue };
             let fit = PriorFitArgs { prior_refine: 0, ..args.fit.clone() };
-            let settings = prior_method(prior.clone(), &fit, renders, fp, fs);
+            let mut settings = prior_method(prior.clone(), &fit, renders, fp, fs);
+            settings.hull = hull;
             let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
             eprintln!();
             let latent_s = t0.elapsed().as_secs_f64();

@@ -34,7 +34,7 @@ fn the_latent_gradient_of_a_prior_is_exact_in_both_modes() {
     let paper = paper_problem(16, 2, 20_000, 0);
     let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
     let problem = Problem { scene: &paper.scene, targets, held_out, truth: Some(&paper.truth) };
-    let mut model = prior_model(&paper.scene, targets, &prior).unwrap();
+    let mut model = prior_model(&paper.scene, targets, &prior, Default::default()).unwrap();
     model.z.iter_mut().enumerate().for_each(|(k, z)| *z = 0.3 * ((k % 7) as f64 - 3.0) / 3.0);
     let level = Level::full(&problem, &model.mask);
     let scene = level.scene_at(&model.density(&paper.scene.density), 10_000, 2, 5);

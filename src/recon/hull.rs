@@ -15,6 +15,22 @@ pub const SILHOUETTE_THRESHOLD: f64 = 0.02;
 /// Silhouette dilation in pixels.
 pub const SILHOUETTE_DILATION: usize = 1;
 
+/// How the hull is carved: the silhouette threshold (a fraction of each
+/// image's 99.5th-percentile radiance) and dilation (pixels).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct HullSettings {
+    /// Silhouette threshold.
+    pub threshold: f64,
+    /// Silhouette dilation.
+    pub dilate: usize,
+}
+
+impl Default for HullSettings {
+    fn default() -> Self {
+        HullSettings { threshold: SILHOUETTE_THRESHOLD, dilate: SILHOUETTE_DILATION }
+    }
+}
+
 /// The silhouette of `image`: `true` where the medium is seen.
 pub fn silhouette(image: &Image, threshold: f64, dilate: usize) -> Vec<bool> {
     let white = crate::image::auto_white(&image.data);

@@ -14,7 +14,7 @@ use crate::image::Image;
 use crate::model::Decoder;
 use crate::model::Model;
 use crate::prior::Prior;
-use crate::recon::hull::{visual_hull, SILHOUETTE_DILATION, SILHOUETTE_THRESHOLD};
+use crate::recon::hull::{visual_hull, HullSettings};
 use crate::render::render_photon;
 use crate::scene::Scene;
 use crate::volume::Grid;
@@ -58,6 +58,8 @@ pub struct ReconstructSettings {
     pub snapshot_camera: usize,
     /// Iterations whose image of the snapshot camera is kept (the last one is added).
     pub snapshot_iterations: Vec<usize>,
+    /// How the visual hull is carved.
+    pub hull: HullSettings,
     /// A learned prior: its decoder and weights replace the per-scene
     /// decoder and the latent starts at the prior's mean (none: the paper's
     /// per-scene decoder, initialised from `init_seed`).
@@ -79,6 +81,7 @@ impl ReconstructSettings {
             snapshot_iterations: paper::FIG6_ITERATIONS.to_vec(),
             refine: RefineSettings { seed: train.seed, ..RefineSettings::default() },
             train,
+            hull: HullSettings::default(),
             prior: None,
         }
     }
@@ -88,7 +91,12 @@ impl ReconstructSettings {
 /// (the first `targets.len()` of the scene's) as its mask, a decoder for the
 /// scene's cubic grid, latent and weights initialised from `init_seed`.
 pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result<Model> {
-    let mask = hull(scene, targets)?;
+    initial_model_in(scene, targets, init_seed, HullSettings::default())
+}
+
+/// [`initial_model`] with the hull carved by `hull`.
+pub fn initial_model_in(scene: &Scene, targets: &[Image], init_seed: u64, hull_settings: HullSettings) -> Result<Model> {
+    let mask = hull(scene, targets, hull_settings)?;
     let res = scene.density.shape[0];
     if scene.density.shape != [res, res, res] {
         return Err(Error(format!("volume.density: the decoder needs a cubic grid, got {:?}", scene.density.shape)));
@@ -103,18 +111,17 @@ pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result
 /// [`initial_model`], the prior's decoder and weights, the latent at the
 /// prior's mean (0: its latents are whitened). Errors if the prior does
 /// not decode the scene's grid.
-pub fn prior_model(scene: &Scene, targets: &[Image], prior: &Prior) -> Result<Model> {
+pub fn prior_model(scene: &Scene, targets: &[Image], prior: &Prior, hull_settings: HullSettings) -> Result<Model> {
     prior.check_grid(scene.density.shape)?;
-    let mask = hull(scene, targets)?;
+    let mask = hull(scene, targets, hull_settings)?;
     let z = vec![0.0; prior.decoder.latent()];
     Ok(Model { decoder: prior.decoder.clone(), z, w: prior.w.clone(), mask })
 }
 
 /// The visual hull of the training cameras (the first `targets.len()`).
-fn hull(scene: &Scene, targets: &[Image]) -> Result<Vec<bool>> {
+fn hull(scene: &Scene, targets: &[Image], h: HullSettings) -> Result<Vec<bool>> {
     let n_train = targets.len();
-    let mask =
-        visual_hull(&scene.density, &scene.cameras[..n_train], targets, SILHOUETTE_THRESHOLD, SILHOUETTE_DILATION);
+    let mask = visual_hull(&scene.density, &scene.cameras[..n_train], targets, h.threshold, h.dilate);
     if !mask.iter().any(|&m| m) {
         return Err(Error::new("visual hull: no voxel is inside every training silhouette (are the images black?)"));
     }
@@ -133,8 +140,8 @@ pub fn reconstruct(
     let start = Instant::now();
     let (scene, targets) = (problem.scene, problem.targets);
     let mut model = match &settings.prior {
-        Some(prior) => prior_model(scene, targets, prior)?,
-        None => initial_model(scene, targets, settings.init_seed)?,
+        Some(prior) => prior_model(scene, targets, prior, settings.hull)?,
+        None => initial_model_in(scene, targets, settings.init_seed, settings.hull)?,
     };
     let initial = model.density(&scene.density);
 
