@@ -17,7 +17,7 @@ use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1};
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::npy;
 use dualphoton::io::rows::write_rows;
-use dualphoton::recon::adam::Adam;
+use dualphoton::optim::Adam;
 use dualphoton::recon::problem::paper_problem;
 use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::scene::rig;

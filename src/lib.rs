@@ -21,6 +21,7 @@ pub mod image;
 pub mod io;
 pub mod math;
 pub mod model;
+pub mod optim;
 pub mod prior;
 pub mod recon;
 pub mod render;

@@ -14,7 +14,7 @@ use super::decoder;
 use crate::error::{Error, Result};
 use crate::io::npy;
 use crate::model::Decoder;
-use crate::recon::adam::Adam;
+use crate::optim::Adam;
 use crate::rng::{Purpose, Rng};
 use serde::{Deserialize, Serialize};
 use std::path::Path;

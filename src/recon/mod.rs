@@ -5,7 +5,6 @@
 //! among them, many-seed samples of those estimators for studying them, Adam, the training loop, its progress and ETA, a whole
 //! reconstruction and the files it is written to.
 
-pub mod adam;
 pub mod estimator;
 pub mod grad_study;
 pub mod hull;

@@ -95,7 +95,12 @@ pub fn initial_model(scene: &Scene, targets: &[Image], init_seed: u64) -> Result
 }
 
 /// [`initial_model`] with the hull carved by `hull`.
-pub fn initial_model_in(scene: &Scene, targets: &[Image], init_seed: u64, hull_settings: HullSettings) -> Result<Model> {
+pub fn initial_model_in(
+    scene: &Scene,
+    targets: &[Image],
+    init_seed: u64,
+    hull_settings: HullSettings,
+) -> Result<Model> {
     let mask = hull(scene, targets, hull_settings)?;
     let res = scene.density.shape[0];
     if scene.density.shape != [res, res, res] {

@@ -15,7 +15,7 @@ use super::train::{log_row, LogRow};
 use crate::error::{Error, Result};
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::model::Model;
-use crate::recon::adam::Adam;
+use crate::optim::Adam;
 use crate::render::frozen::Frozen;
 use crate::volume::Grid;
 use std::time::Instant;

@@ -22,7 +22,7 @@ use crate::eval::metrics::{rel_l1, rel_rmse};
 use crate::grad::loss::mse;
 use crate::image::Image;
 use crate::model::Model;
-use crate::recon::adam::Adam;
+use crate::optim::Adam;
 use crate::render::frozen::Frozen;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
