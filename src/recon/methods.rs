@@ -82,15 +82,20 @@ pub fn paper_method(r: UpdateRenders, final_photons: u64, final_spp: u32) -> Rec
         ..TrainSettings::default()
     };
     let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
-    s.refine = RefineSettings {
-        updates: 400,
+    s.refine = refinement(400, r);
+    s
+}
+
+/// `updates` refinement updates rendering with `r`.
+fn refinement(updates: usize, r: UpdateRenders) -> RefineSettings {
+    RefineSettings {
+        updates,
         photons: r.photons,
         spp: r.spp,
         decorrelate: r.decorrelate,
         seed: r.seed,
         ..RefineSettings::default()
-    };
-    s
+    }
 }
 
 /// The learned prior's fit: the latent of `prior` by `fit`, the weights
@@ -120,14 +125,7 @@ pub fn prior_method(
         ..TrainSettings::default()
     };
     let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
-    s.refine = RefineSettings {
-        updates: fit.prior_refine,
-        photons: r.photons,
-        spp: r.spp,
-        decorrelate: r.decorrelate,
-        seed: r.seed,
-        ..RefineSettings::default()
-    };
+    s.refine = refinement(fit.prior_refine, r);
     s.prior = Some(prior);
     s
 }
