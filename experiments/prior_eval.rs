@@ -2,7 +2,8 @@
 //! plumes no part of training saw: test plumes from the training
 //! distribution (unseen seeds), the Table 1 plume, and plumes deliberately
 //! outside it (three sources, still air, strong turbulence, cut off by the
-//! top of the box, thick and smooth). Every plume is seen by the paper's rig
+//! top of the box, thick and smooth), and the Table 1 plume in images of
+//! another renderer (the path tracer). Every plume is seen by the paper's rig
 //! (4 training cameras, camera 4 held out) and reconstructed by
 //! - `paper`: the per-scene decoder (the main job's default settings),
 //! - `prior`: the prior's latent only (fwd-full over its 64 coordinates),
@@ -33,6 +34,7 @@ use dualphoton::recon::paper;
 use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
 use dualphoton::recon::refine::refine;
+use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
 use dualphoton::volume::Grid;
@@ -48,8 +50,9 @@ struct Args {
     #[arg(long, default_value_t = 64)]
     res: usize,
     /// Plumes, comma-separated: table1, test0..test99, val0..val99 (validation: for choosing settings,
-    /// never reported as test), three_sources, no_drafts, strong_turbulence, cut_off, smooth; default:
-    /// table1, test0-test7 and the five unusual ones.
+    /// never reported as test), three_sources, no_drafts, strong_turbulence, cut_off, smooth,
+    /// table1_path (the Table 1 plume, its images path-traced); default: table1, test0-test7, the
+    /// five unusual plumes and table1_path.
     #[arg(long)]
     plumes: Option<String>,
     /// Methods, comma-separated: paper, prior (also writes prior_refine when --prior-refine > 0).
@@ -75,6 +78,9 @@ struct Args {
     /// Silhouette dilation of the visual hull (pixels).
     #[arg(long, default_value_t = dualphoton::recon::hull::SILHOUETTE_DILATION)]
     hull_dilate: usize,
+    /// Samples per pixel of the path-traced images of `table1_path`.
+    #[arg(long, default_value_t = 4096)]
+    path_spp: u32,
     /// Recompute rows that exist.
     #[arg(long)]
     fresh: bool,
@@ -87,6 +93,8 @@ struct Args {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Which {
     Table1,
+    /// The Table 1 plume, its images made by the path tracer (another renderer) instead of the photon mapper.
+    PathTraced,
     Test(u64),
     Validation(u64),
     Unusual(Unusual),
@@ -99,6 +107,9 @@ impl Which {
         };
         if name == "table1" {
             return Ok(Which::Table1);
+        }
+        if name == "table1_path" {
+            return Ok(Which::PathTraced);
         }
         if let Some(n) = number("test", &TEST_SEEDS) {
             return Ok(Which::Test(n));
@@ -116,6 +127,7 @@ impl Which {
     fn name(self) -> String {
         match self {
             Which::Table1 => "table1".into(),
+            Which::PathTraced => "table1_path".into(),
             Which::Test(n) => format!("test{n}"),
             Which::Validation(n) => format!("val{n}"),
             Which::Unusual(u) => u.name().into(),
@@ -127,13 +139,13 @@ impl Which {
         match self {
             Which::Table1 | Which::Test(_) => "training distribution",
             Which::Validation(_) => "validation",
-            Which::Unusual(_) => "unusual",
+            Which::Unusual(_) | Which::PathTraced => "unusual",
         }
     }
 
     fn seed(self) -> u64 {
         match self {
-            Which::Table1 => 0,
+            Which::Table1 | Which::PathTraced => 0,
             Which::Test(n) => TEST_SEEDS.start + n,
             Which::Validation(n) => VALIDATION_SEEDS.start + n,
             Which::Unusual(u) => u.seed(),
@@ -142,7 +154,7 @@ impl Which {
 
     fn truth(self, res: usize) -> Result<Grid<f64>> {
         match self {
-            Which::Table1 => Ok(plume(res, 0)),
+            Which::Table1 | Which::PathTraced => Ok(plume(res, 0)),
             Which::Test(_) | Which::Validation(_) => plume_with(res, self.seed(), &Variation::sample(self.seed())),
             Which::Unusual(u) => Ok(unusual_plume(res, u)),
         }
@@ -202,6 +214,7 @@ fn run(args: Args) -> Result<()> {
         None => std::iter::once(Which::Table1)
             .chain((0..8).map(Which::Test))
             .chain(Unusual::ALL.iter().map(|&u| Which::Unusual(u)))
+            .chain(std::iter::once(Which::PathTraced))
             .collect(),
     };
     let methods: Vec<&str> = args.methods.split(',').map(str::trim).collect();
