@@ -239,8 +239,14 @@ fn run(args: Args) -> Result<()> {
         }
         eprintln!("[{}/{}] {} ({}): rendering the truth ...", p + 1, plumes.len(), which.name(), which.group());
         let truth = which.truth(args.res)?;
-        let PaperProblem { truth, mut scene, images } = paper_problem_of(truth, which.seed(), paper::TARGET_PHOTONS, 0);
+        let PaperProblem { truth, mut scene, mut images } =
+            paper_problem_of(truth, which.seed(), paper::TARGET_PHOTONS, 0);
         target_render(&mut scene, which.seed(), paper::TARGET_PHOTONS);
+        if which == Which::PathTraced {
+            let opts =
+                PathOptions { spp: args.path_spp, seed: paper::target_seed(which.seed()), ..PathOptions::default() };
+            images = render_path(&scene, &opts).radiance;
+        }
         let n_train = rig::HELD_OUT_CAMERA;
         let (targets, held_out) = images.split_at(n_train);
         let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
