@@ -366,9 +366,16 @@ fn fit_on_a_grid_the_decoder_cannot_make_is_an_error() {
         dir.join("out").to_str().unwrap(),
         "--iterations",
         "1",
+        "--prior",
+        "none",
     ]);
     assert_eq!(out.status.code(), Some(1));
-    expect_error(&out, "volume.density");
+    // `fit` first says which model it fits, then the one-line error.
     let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.trim().lines().collect();
+    assert_eq!(lines.len(), 2, "{stderr}");
+    assert!(lines[0].starts_with("fit: the paper's per-scene decoder"), "{stderr}");
+    assert!(lines[1].starts_with("error: ") && lines[1].contains("volume.density"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(stderr.contains("4 * 2^n voxels per side") && stderr.trim_end().ends_with("got 24"), "{stderr}");
 }
