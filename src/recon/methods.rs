@@ -75,16 +75,20 @@ impl Default for UpdateRenders {
 /// guided directions), then 400 refinement updates; final renders with
 /// `final_photons` and `final_spp`.
 pub fn paper_method(r: UpdateRenders, final_photons: u64, final_spp: u32) -> ReconstructSettings {
-    let train = TrainSettings {
+    let mut s = ReconstructSettings::paper(training(r), final_photons, final_spp);
+    s.refine = refinement(400, r);
+    s
+}
+
+/// The default training, rendering with `r`.
+fn training(r: UpdateRenders) -> TrainSettings {
+    TrainSettings {
         decorrelate: r.decorrelate,
         photons: r.photons,
         spp: r.spp,
         seed: r.seed,
         ..TrainSettings::default()
-    };
-    let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
-    s.refine = refinement(400, r);
-    s
+    }
 }
 
 /// `updates` refinement updates rendering with `r`.
@@ -119,11 +123,7 @@ pub fn prior_method(
         lr_weights: 0.0,
         coarse_fraction: fit.prior_coarse_fraction,
         latent_penalty: fit.prior_penalty,
-        decorrelate: r.decorrelate,
-        photons: r.photons,
-        spp: r.spp,
-        seed: r.seed,
-        ..TrainSettings::default()
+        ..training(r)
     };
     let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
     s.refine = refinement(fit.prior_refine, r);
