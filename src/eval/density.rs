@@ -21,11 +21,9 @@ pub struct DensityMetrics {
     pub block_pearson_r: f64,
     /// Relative L1 error over those blocks.
     pub block_rel_l1_epsilon: f64,
-    /// Relative error of the total mass (signed).
+    /// Relative error of the total mass (signed); over one hull it is also
+    /// the relative error of the mean density.
     pub mass_error: f64,
-    /// Relative error of the mean density over the hull (signed; equal to
-    /// the mass error, kept for Table 1's wording).
-    pub mean_error: f64,
     /// Relative error of the largest voxel density (signed).
     pub max_error: f64,
     /// Relative error of the largest block density (signed).
@@ -56,7 +54,6 @@ pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -
         block_pearson_r: pearson(&tb, &eb, &mb),
         block_rel_l1_epsilon: rel_l1(&eb, &tb, &mb),
         mass_error: rel(sum(&eh), sum(&th)),
-        mean_error: rel(sum(&eh), sum(&th)),
         max_error: rel(max(&eh), max(&th)),
         block_max_error: rel(max(&in_blocks(&eb)), max(&in_blocks(&tb))),
         blur_ceiling_r: pearson(t, &blurred.data, mask),
