@@ -28,7 +28,7 @@ use dualphoton::io::npy;
 use dualphoton::io::panels::labelled_strip;
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::Prior;
-use dualphoton::recon::hull::HullSettings;
+use dualphoton::recon::hull::{visual_hull, HullSettings};
 use dualphoton::recon::methods::{paper_method, prior_method, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::paper;
 use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
@@ -168,6 +168,12 @@ struct Row {
     group: String,
     method: String,
     hull_voxels: usize,
+    /// Voxels of the hull the fit ran in (None in rows written before it was recorded: the default hull).
+    #[serde(default)]
+    fit_hull_voxels: Option<usize>,
+    /// Fraction of the truth's mass outside the fit's hull (None in rows written before it was recorded).
+    #[serde(default)]
+    carved_mass: Option<f64>,
     block_pearson_r: f64,
     block_rel_l1_epsilon: f64,
     block_max_error: f64,
@@ -182,12 +188,22 @@ struct Row {
 }
 
 impl Row {
-    fn new(which: Which, method: &str, m: &DensityMetrics, held: f64, wall_s: f64, updates: usize) -> Row {
+    fn new(
+        which: Which,
+        method: &str,
+        m: &DensityMetrics,
+        fit: &FitHull,
+        held: f64,
+        wall_s: f64,
+        updates: usize,
+    ) -> Row {
         Row {
             plume: which.name(),
             group: which.group().into(),
             method: method.into(),
             hull_voxels: m.hull_voxels,
+            fit_hull_voxels: Some(fit.voxels),
+            carved_mass: Some(fit.carved_mass),
             block_pearson_r: m.block_pearson_r,
             block_rel_l1_epsilon: m.block_rel_l1_epsilon,
             block_max_error: m.block_max_error,
@@ -250,6 +266,8 @@ fn run(args: Args) -> Result<()> {
         let n_train = rig::HELD_OUT_CAMERA;
         let (targets, held_out) = images.split_at(n_train);
         let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
+        let d = HullSettings::default();
+        let default_hull = visual_hull(&scene.density, &scene.cameras[..n_train], targets, d.threshold, d.dilate);
         let renders =
             UpdateRenders { photons: args.photons, spp: args.spp, decorrelate: args.decorrelate, seed: which.seed() };
         let (fp, fs) = (scene.render.photons, scene.render.spp);
@@ -273,9 +291,10 @@ fn run(args: Args) -> Result<()> {
                 settings.hull = hull;
                 let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
                 eprintln!();
-                let m = density_metrics(&r.estimated, &truth, &r.model.mask);
+                let (region, fit) = measured_region(&default_hull, &r.model.mask, &truth);
+                let m = density_metrics(&r.estimated, &truth, &region);
                 let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
-                let row = Row::new(which, "paper", &m, held, t0.elapsed().as_secs_f64(), r.log.len());
+                let row = Row::new(which, "paper", &m, &fit, held, t0.elapsed().as_secs_f64(), r.log.len());
                 save("paper", &r.estimated, &row)?;
                 continue;
             }
@@ -286,9 +305,10 @@ fn run(args: Args) -> Result<()> {
             let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
             eprintln!();
             let latent_s = t0.elapsed().as_secs_f64();
-            let m = density_metrics(&r.estimated, &truth, &r.model.mask);
+            let (region, fit) = measured_region(&default_hull, &r.model.mask, &truth);
+            let m = density_metrics(&r.estimated, &truth, &region);
             let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
-            save("prior", &r.estimated, &Row::new(which, "prior", &m, held, latent_s, r.log.len()))?;
+            save("prior", &r.estimated, &Row::new(which, "prior", &m, &fit, held, latent_s, r.log.len()))?;
             if args.fit.prior_refine > 0 {
                 let t1 = Instant::now();
                 let full = prior_method(prior.clone(), &args.fit, renders, fp, fs);
@@ -297,11 +317,11 @@ fn run(args: Args) -> Result<()> {
                 })?;
                 eprintln!();
                 let images = final_render(&refined, &full);
-                let m = density_metrics(&refined, &truth, &r.model.mask);
+                let m = density_metrics(&refined, &truth, &region);
                 let held = rel_rmse(&images[n_train].data, &held_out[0].data);
                 let wall = latent_s + t1.elapsed().as_secs_f64();
                 let updates = r.log.len() + args.fit.prior_refine;
-                save("prior_refine", &refined, &Row::new(which, "prior_refine", &m, held, wall, updates))?;
+                save("prior_refine", &refined, &Row::new(which, "prior_refine", &m, &fit, held, wall, updates))?;
             }
         }
     }
@@ -312,6 +332,24 @@ fn run(args: Args) -> Result<()> {
     write_manifest(&args.out.join("manifest.json"), &args, started.elapsed().as_secs_f64())?;
     print!("{}", table_markdown(&rows));
     Ok(())
+}
+
+/// The hull a fit ran in: its voxels and the fraction of the truth's mass it carved away.
+struct FitHull {
+    voxels: usize,
+    carved_mass: f64,
+}
+
+/// Where the measures are taken: the default hull, joined with the fit's
+/// own hull `fit_mask` (the same for the default settings). One region for
+/// every hull setting keeps the measures comparable: an estimate is 0
+/// outside its hull, so mass a tighter hull carves away counts as error.
+fn measured_region(default_hull: &[bool], fit_mask: &[bool], truth: &Grid<f64>) -> (Vec<bool>, FitHull) {
+    let region = default_hull.iter().zip(fit_mask).map(|(&a, &b)| a || b).collect();
+    let total: f64 = truth.data.iter().sum();
+    let outside: f64 = truth.data.iter().zip(fit_mask).filter(|(_, &m)| !m).map(|(v, _)| v).sum();
+    let carved_mass = if total > 0.0 { outside / total } else { 0.0 };
+    (region, FitHull { voxels: fit_mask.iter().filter(|&&m| m).count(), carved_mass })
 }
 
 /// The rows of `plumes` found in `dir`, in plume then method order.
@@ -335,17 +373,24 @@ fn table_markdown(rows: &[Row]) -> String {
     let mut md = String::from(
         "# The learned prior against the paper's per-scene decoder\n\n\
          Block measures are over 2x2x2 blocks at least half inside the visual hull; voxel measures over the hull \
-         voxels; the ceiling is r of the truth against itself blurred by one voxel.\n\n\
-         | plume | group | method | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | held-out RMSE | wall s |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         voxels (both over the default hull, whatever hull the fit ran in); the ceiling is r of the truth against \
+         itself blurred by one voxel; fit hull: the voxels the fit ran in and the fraction of the truth's mass \
+         outside them.\n\n\
+         | plume | group | method | fit hull (carved mass) | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | held-out RMSE | wall s |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {:.1} % | {:.0} |",
+            "| {} | {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {:.1} % | {:.0} |",
             r.plume,
             r.group,
             r.method,
+            format!(
+                "{} ({})",
+                r.fit_hull_voxels.unwrap_or(r.hull_voxels),
+                r.carved_mass.map_or("—".into(), |c| format!("{:.1} %", 100.0 * c))
+            ),
             r.block_pearson_r,
             r.block_rel_l1_epsilon,
             100.0 * r.block_max_error,
