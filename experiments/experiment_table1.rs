@@ -11,14 +11,11 @@ use dualphoton::io::figures::{table1_chart, Table1Bars};
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::Prior;
-use dualphoton::recon::estimator::{Estimator, EstimatorSettings, WeightDirections};
-use dualphoton::recon::methods::{prior_method, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::methods::{paper_method, prior_method, PaperFitArgs, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::paper::{self, TABLE1};
 use dualphoton::recon::problem::{paper_problem, target_render, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings, Reconstruction};
-use dualphoton::recon::refine::RefineSettings;
-use dualphoton::recon::train::TrainSettings;
 use dualphoton::scene::{file, rig};
 use dualphoton::volume::Grid;
 use serde::Serialize;
@@ -28,7 +25,11 @@ use std::time::Instant;
 
 /// The run's settings (after `--smoke`); they open its manifest.
 #[derive(Parser, Serialize)]
-#[command(about = "Reconstruct the built-in plume and regenerate the paper's Table 1 and Figs. 5-8")]
+#[command(
+    about = "Reconstruct the built-in plume and regenerate the paper's Table 1 and Figs. 5-8",
+    after_help = "Above 64^3, --time-budget and --refine-budget default to 300 s and 120 s, so that --res 128 \
+                  ends within 10 minutes."
+)]
 struct Args {
     /// Grid resolution (res^3) and image size (res x res); the paper used 128.
     #[arg(long, default_value_t = 64)]
@@ -36,68 +37,16 @@ struct Args {
     /// Seed of the plume, the renders and the model.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Adam updates.
-    #[arg(long, default_value_t = 250)]
-    iterations: usize,
-    /// Gradient estimator: fwd-full (default), fwd-rand, rev-sub (the paper's approximate learning), rev-full.
-    #[arg(long, value_enum, default_value = "fwd-full")]
-    estimator: Estimator,
-    /// Dual lanes per forward pass (1, 2, 4, 8, 16); 16 costs about as much as 8 here (results/bench_grad).
-    #[arg(long, default_value_t = 16)]
-    lanes: usize,
-    /// Forward-mode directions for the decoder weights per update.
-    #[arg(long, default_value_t = 8)]
-    weight_directions: usize,
-    /// How weight directions are chosen: orthonormal, guided or coordinates.
-    #[arg(long, value_enum, default_value = "guided")]
-    weight_mode: WeightDirections,
-    /// Adam step of the latent.
-    #[arg(long, default_value_t = 0.05)]
-    lr_latent: f64,
-    /// Adam step of the decoder weights.
-    #[arg(long, default_value_t = 0.01)]
-    lr_weights: f64,
-    /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
-    #[arg(long, default_value_t = 1.0)]
-    lr_final: f64,
-    /// Take each update's image residual from a second, independent render: removes the squared loss's
-    /// noise bias at one more primal render per update (`--decorrelate false`: the paper's loss as it is).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    decorrelate: bool,
-    /// Per-voxel refinement updates after training (0: none): each hull voxel's density times its own factor,
-    /// fitted by reverse mode.
-    #[arg(long, default_value_t = 400)]
-    refine: usize,
-    /// Adam step of the refinement's log-factors.
-    #[arg(long, default_value_t = 0.02)]
-    refine_lr: f64,
-    /// Penalty on the mean squared log-factor of the refinement.
-    #[arg(long, default_value_t = 0.0)]
-    refine_penalty: f64,
-    /// Photons per training update.
-    #[arg(long, default_value_t = 50_000)]
-    photons: u64,
-    /// Camera samples per pixel per training update.
-    #[arg(long, default_value_t = 2)]
-    spp: u32,
-    /// Share of the updates made at half resolution (coarse to fine).
-    #[arg(long, default_value_t = 0.8)]
-    coarse_fraction: f64,
-    /// Stop training after this many seconds (at most --iterations updates; --coarse-fraction then
-    /// shares the time). Default: none up to 64^3, 300 s above, so that --res 128 ends within 10 minutes.
-    #[arg(long)]
-    time_budget: Option<f64>,
-    /// Stop the refinement after this many seconds (at most --refine updates). Default: none up to
-    /// 64^3, 120 s above.
-    #[arg(long)]
-    refine_budget: Option<f64>,
+    #[command(flatten)]
+    #[serde(flatten)]
+    paper_fit: PaperFitArgs,
+    #[command(flatten)]
+    #[serde(flatten)]
+    renders: UpdateRenders,
     /// Extra training cameras on the far side of the circle (not the paper's rig: a study of how much
     /// four views constrain the density).
     #[arg(long, default_value_t = 0)]
     extra_views: usize,
-    /// Weight of a sparsity prior (times the mean hull density) added to the image loss; 0 = the paper's loss.
-    #[arg(long, default_value_t = 0.0)]
-    sparsity: f64,
     /// Photons of the renders that judge the fit (fit_quality.csv); samples per pixel: --fit-spp.
     #[arg(long, default_value_t = 1_000_000)]
     fit_photons: u64,
@@ -181,19 +130,20 @@ fn main() -> std::process::ExitCode {
 fn run(mut args: Args) -> Result<()> {
     if args.smoke {
         args.res = 16;
-        args.iterations = 3;
-        args.photons = 5_000;
-        args.weight_directions = 4;
+        args.paper_fit.iterations = 3;
+        args.renders.photons = 5_000;
+        args.paper_fit.weight_directions = 4;
         (args.fit_photons, args.fit_spp) = (20_000, 2);
-        args.refine = args.refine.min(3);
+        args.paper_fit.refine = args.paper_fit.refine.min(3);
     }
     if args.res > 64 {
-        args.time_budget = args.time_budget.or(Some(LARGE_TRAIN_BUDGET));
-        args.refine_budget = args.refine_budget.or(Some(LARGE_REFINE_BUDGET));
+        let fit = &mut args.paper_fit;
+        fit.time_budget = fit.time_budget.or(Some(LARGE_TRAIN_BUDGET));
+        fit.refine_budget = fit.refine_budget.or(Some(LARGE_REFINE_BUDGET));
     }
+    args.renders.seed = args.seed;
     let started = Instant::now();
     std::fs::create_dir_all(&args.out)?;
-    let (estimator, weight_mode) = (args.estimator, args.weight_mode);
 
     // Ground truth and its images (more photons and samples than a training update).
     let target_photons = if args.smoke { 20_000 } else { paper::TARGET_PHOTONS };
@@ -206,38 +156,7 @@ fn run(mut args: Args) -> Result<()> {
     let n_train = rig::HELD_OUT_CAMERA + args.extra_views;
     let (targets, held_out) = images.split_at(n_train);
 
-    let train = TrainSettings {
-        iterations: args.iterations,
-        gradient: EstimatorSettings {
-            estimator,
-            lanes: args.lanes,
-            weight_directions: args.weight_directions,
-            weight_mode,
-            ..Default::default()
-        },
-        lr_latent: args.lr_latent,
-        lr_weights: args.lr_weights,
-        sparsity: args.sparsity,
-        latent_penalty: 0.0,
-        lr_final: args.lr_final,
-        decorrelate: args.decorrelate,
-        photons: args.photons,
-        spp: args.spp,
-        seed: args.seed,
-        coarse_fraction: args.coarse_fraction,
-        time_budget: args.time_budget,
-    };
-    let mut settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
-    settings.refine = RefineSettings {
-        updates: args.refine,
-        lr: args.refine_lr,
-        penalty: args.refine_penalty,
-        photons: args.photons,
-        spp: args.spp,
-        decorrelate: args.decorrelate,
-        seed: args.seed,
-        time_budget: args.refine_budget,
-    };
+    let settings = paper_method(&args.paper_fit, args.renders, scene.render.photons, scene.render.spp)?;
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
     let prior = match args.prior.as_str() {
         "none" => None,
@@ -260,9 +179,7 @@ fn run(mut args: Args) -> Result<()> {
     let prior_run = match prior {
         Some(prior) => {
             eprintln!("the learned prior ({}): its 64-d latent, then the refinement ...", prior.dir.display());
-            let renders =
-                UpdateRenders { photons: args.photons, spp: args.spp, decorrelate: args.decorrelate, seed: args.seed };
-            let s = prior_method(prior, &args.prior_fit, renders, scene.render.photons, scene.render.spp);
+            let s = prior_method(prior, &args.prior_fit, args.renders, scene.render.photons, scene.render.spp);
             let dir = args.out.join("prior");
             let run = run_method(&problem, &s, &dir, &truth, n_train, &fit_settings)?;
             std::fs::copy(dir.join("density_estimated.npy"), args.out.join("density_estimated_prior.npy"))?;
@@ -318,17 +235,18 @@ fn run(mut args: Args) -> Result<()> {
     for (name, f, target) in measures {
         let _ = writeln!(md, "| {name} | {} | {target} |", cell(f));
     }
-    let trained = r.log.iter().filter(|row| row.iteration < args.iterations).count();
+    let fit = &args.paper_fit;
+    let trained = r.log.iter().filter(|row| row.iteration < fit.iterations).count();
     let _ = writeln!(
         md,
         "\nPaper's method: estimator `{}`, {n_train} training cameras, {} updates{}, then {} per-voxel refinement updates{} (reverse mode), {} photons and {} spp per update, decoder: {} parameters, latent 64.",
-        estimator.name(),
+        fit.estimator.name(),
         trained,
-        args.time_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
+        fit.time_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
         r.log.len() - trained,
-        args.refine_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
-        args.photons,
-        args.spp,
+        fit.refine_budget.map_or(String::new(), |b| format!(" (time budget {b:.0} s)")),
+        args.renders.photons,
+        args.renders.spp,
         r.model.decoder.param_count(),
     );
     if let Some(p) = &prior_run {

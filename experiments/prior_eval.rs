@@ -29,7 +29,7 @@ use dualphoton::io::panels::labelled_strip;
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::Prior;
 use dualphoton::recon::hull::{visual_hull, HullSettings};
-use dualphoton::recon::methods::{paper_method, prior_method, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::methods::{paper_method, prior_method, PaperFitArgs, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::paper;
 use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
@@ -63,15 +63,12 @@ struct Args {
     prior: PathBuf,
     #[command(flatten)]
     fit: PriorFitArgs,
-    /// Photons per update (both methods).
-    #[arg(long, default_value_t = 50_000)]
-    photons: u64,
-    /// Camera samples per pixel per update.
-    #[arg(long, default_value_t = 2)]
-    spp: u32,
-    /// Independent residual renders (both methods).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    decorrelate: bool,
+    #[command(flatten)]
+    #[serde(flatten)]
+    paper_fit: PaperFitArgs,
+    #[command(flatten)]
+    #[serde(flatten)]
+    renders: UpdateRenders,
     /// Silhouette threshold of the visual hull (fraction of each image's 99.5th-percentile radiance).
     #[arg(long, default_value_t = dualphoton::recon::hull::SILHOUETTE_THRESHOLD)]
     hull_threshold: f64,
@@ -268,8 +265,7 @@ fn run(args: Args) -> Result<()> {
         let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
         let d = HullSettings::default();
         let default_hull = visual_hull(&scene.density, &scene.cameras[..n_train], targets, d.threshold, d.dilate);
-        let renders =
-            UpdateRenders { photons: args.photons, spp: args.spp, decorrelate: args.decorrelate, seed: which.seed() };
+        let renders = UpdateRenders { seed: which.seed(), ..args.renders };
         let (fp, fs) = (scene.render.photons, scene.render.spp);
         let final_render = |density: &Grid<f64>, settings: &ReconstructSettings| {
             let mut s = scene.clone();
@@ -287,7 +283,7 @@ fn run(args: Args) -> Result<()> {
             let label = format!("{} {method}", which.name());
             let progress = |p: &dualphoton::recon::progress::Progress| eprint!("\r{label}: {p}   ");
             if method == "paper" {
-                let mut settings = paper_method(renders, fp, fs);
+                let mut settings = paper_method(&args.paper_fit, renders, fp, fs)?;
                 settings.hull = hull;
                 let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
                 eprintln!();

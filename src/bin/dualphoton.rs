@@ -11,13 +11,10 @@ use dualphoton::image::Image;
 use dualphoton::io::rows::write_rows;
 use dualphoton::io::{npy, png};
 use dualphoton::prior::{self, Prior};
-use dualphoton::recon::estimator::EstimatorSettings;
-use dualphoton::recon::methods::{prior_method, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::methods::{paper_method, prior_method, PaperFitArgs, PriorFitArgs, UpdateRenders};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::problem::Problem;
-use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
-use dualphoton::recon::refine::RefineSettings;
-use dualphoton::recon::train::TrainSettings;
+use dualphoton::recon::reconstruct::reconstruct;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::render_photon;
@@ -148,31 +145,10 @@ enum Command {
         /// Cameras held out from training (the last N of the scene).
         #[arg(long, default_value_t = 0)]
         held_out: usize,
-        /// Gradient estimator.
-        #[arg(long, value_enum, default_value = "fwd-full")]
-        estimator: Estimator,
-        /// Adam updates.
-        #[arg(long, default_value_t = 250)]
-        iterations: usize,
-        /// Photons per update.
-        #[arg(long, default_value_t = 50_000)]
-        photons: u64,
-        /// Share of the updates made at half resolution (coarse to fine).
-        #[arg(long, default_value_t = 0.8)]
-        coarse_fraction: f64,
-        /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
-        #[arg(long, default_value_t = 1.0)]
-        lr_final: f64,
-        /// Take each update's image residual from a second, independent render: removes the squared loss's
-        /// noise bias at one more primal render per update (`--decorrelate false`: the paper's loss as it is).
-        #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-        decorrelate: bool,
-        /// Per-voxel refinement updates after training (0: none; reverse mode).
-        #[arg(long, default_value_t = 400)]
-        refine: usize,
-        /// Penalty on the refinement's mean squared log-factor.
-        #[arg(long, default_value_t = 0.0)]
-        refine_penalty: f64,
+        #[command(flatten)]
+        paper_fit: PaperFitArgs,
+        #[command(flatten)]
+        renders: UpdateRenders,
         /// Photons of the renders that judge the fit (fit_quality.csv; 8 samples per pixel).
         #[arg(long, default_value_t = 1_000_000)]
         judge_photons: u64,
@@ -340,14 +316,8 @@ fn run(command: Command) -> Result<()> {
             images,
             out,
             held_out,
-            estimator,
-            iterations,
-            photons,
-            coarse_fraction,
-            lr_final,
-            decorrelate,
-            refine,
-            refine_penalty,
+            paper_fit,
+            mut renders,
             judge_photons,
             seed,
             prior,
@@ -357,7 +327,7 @@ fn run(command: Command) -> Result<()> {
             set_threads(threads)?;
             let scene = file::load(&scene)?;
             let prior = choose_prior(prior.as_deref(), scene.density.shape)?;
-            file::check_photons(photons, scene.medium.max_order, "--photons")?;
+            file::check_photons(renders.photons, scene.medium.max_order, "--photons")?;
             let all = read_targets(&images, &scene)?;
             if held_out >= scene.cameras.len() {
                 return Err(Error(format!(
@@ -366,33 +336,12 @@ fn run(command: Command) -> Result<()> {
                 )));
             }
             let (targets, held) = all.split_at(scene.cameras.len() - held_out);
-            let gradient = EstimatorSettings { estimator, ..EstimatorSettings::default() };
-            if !(0.0..=1.0).contains(&coarse_fraction) {
-                return Err(Error(format!("--coarse-fraction: {coarse_fraction} must be in 0..=1")));
-            }
-            let train = TrainSettings {
-                iterations,
-                gradient,
-                photons,
-                seed,
-                coarse_fraction,
-                lr_final,
-                decorrelate,
-                ..TrainSettings::default()
+            renders.seed = seed;
+            let (fp, fs) = (scene.render.photons, scene.render.spp);
+            let settings = match prior {
+                Some(prior) => prior_method(prior, &prior_fit, renders, fp, fs),
+                None => paper_method(&paper_fit, renders, fp, fs)?,
             };
-            let mut settings = ReconstructSettings::paper(train, scene.render.photons, scene.render.spp);
-            settings.refine = RefineSettings {
-                updates: refine,
-                penalty: refine_penalty,
-                photons,
-                decorrelate,
-                seed,
-                ..RefineSettings::default()
-            };
-            if let Some(prior) = prior {
-                let renders = UpdateRenders { photons, decorrelate, seed, ..UpdateRenders::default() };
-                settings = prior_method(prior, &prior_fit, renders, scene.render.photons, scene.render.spp);
-            }
             let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
             let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;
             let r = reconstruct(&problem, &settings, &mut |p| {

@@ -6,10 +6,11 @@
 //!   fitted, by exact forward-mode gradients over its 64 coordinates, under
 //!   a Gaussian penalty, then (optionally) the same per-voxel refinement.
 
-use super::estimator::{Estimator, EstimatorSettings};
+use super::estimator::{Estimator, EstimatorSettings, WeightDirections};
 use super::reconstruct::ReconstructSettings;
 use super::refine::RefineSettings;
 use super::train::TrainSettings;
+use crate::error::{Error, Result};
 use crate::prior::Prior;
 use serde::Serialize;
 
@@ -51,16 +52,23 @@ impl Default for PriorFitArgs {
     }
 }
 
-/// What every update renders with, for both methods.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What every update renders with, for both methods (command-line options
+/// of every program that reconstructs; the seed is the program's own).
+#[derive(clap::Args, Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct UpdateRenders {
     /// Photons per update.
+    #[arg(long, default_value_t = 50_000)]
     pub photons: u64,
     /// Camera samples per pixel per update.
+    #[arg(long, default_value_t = 2)]
     pub spp: u32,
-    /// Residual from an independent second render ([`TrainSettings::decorrelate`]).
+    /// Take each update's image residual from a second, independent render: removes the squared loss's
+    /// noise bias at one more primal render per update (`--decorrelate false`: the paper's loss as it is).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub decorrelate: bool,
-    /// Seed of the renders (and the paper decoder's initial values).
+    /// Seed of the renders (and the paper decoder's initial values): set by the program.
+    #[arg(skip)]
+    #[serde(skip)]
     pub seed: u64,
 }
 
@@ -70,14 +78,120 @@ impl Default for UpdateRenders {
     }
 }
 
-/// The paper's method as the main job runs it by default: 250 updates
-/// (80 % at half resolution) of latent (`fwd-full`, exact) and weights (8
-/// guided directions), then 400 refinement updates; final renders with
-/// `final_photons` and `final_spp`.
-pub fn paper_method(r: UpdateRenders, final_photons: u64, final_spp: u32) -> ReconstructSettings {
-    let mut s = ReconstructSettings::paper(training(r), final_photons, final_spp);
-    s.refine = refinement(400, r);
-    s
+/// How the paper's method trains its per-scene decoder and refines
+/// (command-line options of every program that reconstructs).
+#[derive(clap::Args, Clone, Debug, PartialEq, Serialize)]
+pub struct PaperFitArgs {
+    /// Adam updates.
+    #[arg(long, default_value_t = 250)]
+    pub iterations: usize,
+    /// Gradient estimator: fwd-full (default), fwd-rand, rev-sub (the paper's approximate learning), rev-full.
+    #[arg(long, value_enum, default_value = "fwd-full")]
+    pub estimator: Estimator,
+    /// Dual lanes per forward pass (1, 2, 4, 8, 16); 16 costs about as much as 8 here (results/bench_grad).
+    #[arg(long, default_value_t = 16)]
+    pub lanes: usize,
+    /// Forward-mode directions for the decoder weights per update.
+    #[arg(long, default_value_t = 8)]
+    pub weight_directions: usize,
+    /// How weight directions are chosen: orthonormal, guided or coordinates.
+    #[arg(long, value_enum, default_value = "guided")]
+    pub weight_mode: WeightDirections,
+    /// Adam step of the latent.
+    #[arg(long, default_value_t = 0.05)]
+    pub lr_latent: f64,
+    /// Adam step of the decoder weights.
+    #[arg(long, default_value_t = 0.01)]
+    pub lr_weights: f64,
+    /// Learning rates fall exponentially over the full-resolution updates to this fraction (1: constant).
+    #[arg(long, default_value_t = 1.0)]
+    pub lr_final: f64,
+    /// Share of the updates made at half resolution (coarse to fine).
+    #[arg(long, default_value_t = 0.8)]
+    pub coarse_fraction: f64,
+    /// Weight of a sparsity prior (times the mean hull density) added to the image loss; 0 = the paper's loss.
+    #[arg(long, default_value_t = 0.0)]
+    pub sparsity: f64,
+    /// Stop training after this many seconds (at most --iterations updates; --coarse-fraction then
+    /// shares the time). Default: none.
+    #[arg(long)]
+    pub time_budget: Option<f64>,
+    /// Per-voxel refinement updates after training (0: none): each hull voxel's density times its own factor,
+    /// fitted by reverse mode.
+    #[arg(long, default_value_t = 400)]
+    pub refine: usize,
+    /// Adam step of the refinement's log-factors.
+    #[arg(long, default_value_t = 0.02)]
+    pub refine_lr: f64,
+    /// Penalty on the mean squared log-factor of the refinement.
+    #[arg(long, default_value_t = 0.0)]
+    pub refine_penalty: f64,
+    /// Stop the refinement after this many seconds (at most --refine updates). Default: none.
+    #[arg(long)]
+    pub refine_budget: Option<f64>,
+}
+
+impl Default for PaperFitArgs {
+    fn default() -> Self {
+        PaperFitArgs {
+            iterations: 250,
+            estimator: Estimator::FwdFull,
+            lanes: 16,
+            weight_directions: 8,
+            weight_mode: WeightDirections::Guided,
+            lr_latent: 0.05,
+            lr_weights: 0.01,
+            lr_final: 1.0,
+            coarse_fraction: 0.8,
+            sparsity: 0.0,
+            time_budget: None,
+            refine: 400,
+            refine_lr: 0.02,
+            refine_penalty: 0.0,
+            refine_budget: None,
+        }
+    }
+}
+
+/// The paper's method by `fit`: `fit.iterations` updates (by default 80 %
+/// at half resolution) of latent (`fwd-full`, exact) and weights (8 guided
+/// directions), then `fit.refine` refinement updates, rendering with `r`;
+/// final renders with `final_photons` and `final_spp`. Errors on settings
+/// that cannot run.
+pub fn paper_method(
+    fit: &PaperFitArgs,
+    r: UpdateRenders,
+    final_photons: u64,
+    final_spp: u32,
+) -> Result<ReconstructSettings> {
+    if !(0.0..=1.0).contains(&fit.coarse_fraction) {
+        return Err(Error(format!("--coarse-fraction: {} must be in 0..=1", fit.coarse_fraction)));
+    }
+    let train = TrainSettings {
+        iterations: fit.iterations,
+        gradient: EstimatorSettings {
+            estimator: fit.estimator,
+            lanes: fit.lanes,
+            weight_directions: fit.weight_directions,
+            weight_mode: fit.weight_mode,
+            ..EstimatorSettings::default()
+        },
+        lr_latent: fit.lr_latent,
+        lr_weights: fit.lr_weights,
+        lr_final: fit.lr_final,
+        coarse_fraction: fit.coarse_fraction,
+        sparsity: fit.sparsity,
+        time_budget: fit.time_budget,
+        ..training(r)
+    };
+    let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
+    s.refine = RefineSettings {
+        lr: fit.refine_lr,
+        penalty: fit.refine_penalty,
+        time_budget: fit.refine_budget,
+        ..refinement(fit.refine, r)
+    };
+    Ok(s)
 }
 
 /// The default training, rendering with `r`.
@@ -129,4 +243,42 @@ pub fn prior_method(
     s.refine = refinement(fit.prior_refine, r);
     s.prior = Some(prior);
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::{CommandFactory, Parser};
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        paper: PaperFitArgs,
+        #[command(flatten)]
+        prior: PriorFitArgs,
+        #[command(flatten)]
+        renders: UpdateRenders,
+    }
+
+    #[test]
+    fn the_defaults_are_the_command_line_defaults() {
+        Cli::command().debug_assert();
+        let cli = Cli::parse_from(["test"]);
+        assert_eq!(cli.paper, PaperFitArgs::default());
+        assert_eq!(cli.prior, PriorFitArgs::default());
+        assert_eq!(cli.renders, UpdateRenders::default());
+    }
+
+    #[test]
+    fn the_paper_method_takes_every_option_and_refuses_a_bad_schedule() {
+        let fit = PaperFitArgs { iterations: 7, lanes: 4, refine: 3, refine_lr: 0.5, ..PaperFitArgs::default() };
+        let r = UpdateRenders { photons: 1234, seed: 9, ..UpdateRenders::default() };
+        let s = paper_method(&fit, r, 10, 1).unwrap();
+        assert_eq!((s.train.iterations, s.train.gradient.lanes, s.train.photons, s.train.seed), (7, 4, 1234, 9));
+        assert_eq!((s.refine.updates, s.refine.lr, s.refine.photons, s.refine.seed), (3, 0.5, 1234, 9));
+        assert!(s.train.decorrelate && s.refine.decorrelate);
+        let bad = PaperFitArgs { coarse_fraction: 1.5, ..PaperFitArgs::default() };
+        let e = paper_method(&bad, r, 10, 1).unwrap_err().to_string();
+        assert!(e.contains("--coarse-fraction"), "{e}");
+    }
 }
