@@ -7,7 +7,10 @@
 //! (4 training cameras, camera 4 held out) and reconstructed by
 //! - `paper`: the per-scene decoder (the main job's default settings),
 //! - `prior`: the prior's latent only (fwd-full over its 64 coordinates),
-//! - `prior_refine`: that, then the per-voxel refinement.
+//! - `prior_refine`: that, then the per-voxel refinement;
+//! - `prior_tune` (a study, on request): the latent fit, then latent and
+//!   decoder weights fine-tuned near the prior; `prior_tune_refine`: then
+//!   the refinement.
 //!
 //! Resumable: each (plume, method) row is written as it finishes under
 //! `<out>/rows/`, and a later run skips the rows it finds (`--fresh`
@@ -29,11 +32,14 @@ use dualphoton::io::panels::labelled_strip;
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::Prior;
 use dualphoton::recon::hull::{visual_hull, HullSettings};
-use dualphoton::recon::methods::{paper_method, prior_method, PaperFitArgs, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::methods::{
+    paper_method, prior_method, prior_tuning, PaperFitArgs, PriorFitArgs, PriorTuneArgs, UpdateRenders,
+};
 use dualphoton::recon::paper;
 use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
 use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
 use dualphoton::recon::refine::refine;
+use dualphoton::recon::train::train;
 use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
@@ -55,7 +61,9 @@ struct Args {
     /// five unusual plumes and table1_path.
     #[arg(long)]
     plumes: Option<String>,
-    /// Methods, comma-separated: paper, prior (also writes prior_refine when --prior-refine > 0).
+    /// Methods, comma-separated: paper, prior (also writes prior_refine when --prior-refine > 0),
+    /// prior_tune (a study: the latent fit, then --prior-tune updates of latent and decoder weights; also
+    /// writes prior_tune_refine).
     #[arg(long, default_value = "paper,prior")]
     methods: String,
     /// The prior's directory.
@@ -63,6 +71,8 @@ struct Args {
     prior: PathBuf,
     #[command(flatten)]
     fit: PriorFitArgs,
+    #[command(flatten)]
+    tune: PriorTuneArgs,
     #[command(flatten)]
     #[serde(flatten)]
     paper_fit: PaperFitArgs,
@@ -85,6 +95,11 @@ struct Args {
     #[arg(long, default_value = "results/prior_eval")]
     out: PathBuf,
 }
+
+/// The methods `--methods` names.
+const METHODS: [&str; 3] = ["paper", "prior", "prior_tune"];
+/// The rows a plume can have, in table order.
+const ROWS: [&str; 5] = ["paper", "prior", "prior_refine", "prior_tune", "prior_tune_refine"];
 
 /// One plume of the evaluation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -231,10 +246,10 @@ fn run(args: Args) -> Result<()> {
             .collect(),
     };
     let methods: Vec<&str> = args.methods.split(',').map(str::trim).collect();
-    if let Some(m) = methods.iter().find(|m| !["paper", "prior"].contains(m)) {
-        return Err(Error(format!("--methods: unknown method '{m}' (paper, prior)")));
+    if let Some(m) = methods.iter().find(|m| !METHODS.contains(m)) {
+        return Err(Error(format!("--methods: unknown method '{m}' ({})", METHODS.join(", "))));
     }
-    let prior = if methods.contains(&"prior") { Some(Prior::load(&args.prior)?) } else { None };
+    let prior = if methods.iter().any(|m| m.starts_with("prior")) { Some(Prior::load(&args.prior)?) } else { None };
     let hull = HullSettings { threshold: args.hull_threshold, dilate: args.hull_dilate };
     let rows_dir = args.out.join("rows");
     let name = args.out.file_name().map_or("prior_eval".into(), |n| n.to_string_lossy().into_owned());
@@ -300,24 +315,41 @@ fn run(args: Args) -> Result<()> {
             settings.hull = hull;
             let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
             eprintln!();
-            let latent_s = t0.elapsed().as_secs_f64();
             let (region, fit) = measured_region(&default_hull, &r.model.mask, &truth);
-            let m = density_metrics(&r.estimated, &truth, &region);
-            let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
-            save("prior", &r.estimated, &Row::new(which, "prior", &m, &fit, held, latent_s, r.log.len()))?;
+            let measure = |density: &Grid<f64>, images: &[Image]| {
+                (density_metrics(density, &truth, &region), rel_rmse(&images[n_train].data, &held_out[0].data))
+            };
+            let (mut model, mut updates) = (r.model.clone(), r.log.len());
+            if method == "prior" {
+                let (m, held) = measure(&r.estimated, &r.final_images);
+                let row = Row::new(which, "prior", &m, &fit, held, t0.elapsed().as_secs_f64(), updates);
+                save("prior", &r.estimated, &row)?;
+            } else {
+                let tuning = prior_tuning(&args.fit, &args.tune, renders);
+                train(&problem, &mut model, &tuning, &mut |row, _, _| {
+                    eprint!("\r{label}: tuning update {} ({:.0} s)   ", row.iteration, row.wall_s)
+                })?;
+                eprintln!();
+                updates += tuning.iterations;
+                let density = model.density(&scene.density);
+                let (m, held) = measure(&density, &final_render(&density, &settings));
+                save(
+                    "prior_tune",
+                    &density,
+                    &Row::new(which, "prior_tune", &m, &fit, held, t0.elapsed().as_secs_f64(), updates),
+                )?;
+            }
             if args.fit.prior_refine > 0 {
-                let t1 = Instant::now();
                 let full = prior_method(prior.clone(), &args.fit, renders, fp, fs);
-                let refined = refine(&problem, &r.model, &full.refine, r.log.len(), &mut |row| {
+                let refined = refine(&problem, &model, &full.refine, updates, &mut |row| {
                     eprint!("\r{label} refine: update {} ({:.0} s)   ", row.iteration, row.wall_s)
                 })?;
                 eprintln!();
-                let images = final_render(&refined, &full);
-                let m = density_metrics(&refined, &truth, &region);
-                let held = rel_rmse(&images[n_train].data, &held_out[0].data);
-                let wall = latent_s + t1.elapsed().as_secs_f64();
-                let updates = r.log.len() + args.fit.prior_refine;
-                save("prior_refine", &refined, &Row::new(which, "prior_refine", &m, &fit, held, wall, updates))?;
+                let (m, held) = measure(&refined, &final_render(&refined, &full));
+                let name = format!("{method}_refine");
+                let row =
+                    Row::new(which, &name, &m, &fit, held, t0.elapsed().as_secs_f64(), updates + args.fit.prior_refine);
+                save(&name, &refined, &row)?;
             }
         }
     }
@@ -352,7 +384,7 @@ fn measured_region(default_hull: &[bool], fit_mask: &[bool], truth: &Grid<f64>) 
 fn read_rows(dir: &Path, plumes: &[Which]) -> Result<Vec<Row>> {
     let mut rows = vec![];
     for which in plumes {
-        for method in ["paper", "prior", "prior_refine"] {
+        for method in ROWS {
             let path = dir.join(format!("{}_{method}.json", which.name()));
             if let Ok(text) = std::fs::read_to_string(&path) {
                 let row: Row =
@@ -407,7 +439,7 @@ fn table_markdown(rows: &[Row]) -> String {
     groups.sort();
     groups.dedup();
     for g in groups {
-        for method in ["paper", "prior", "prior_refine"] {
+        for method in ROWS {
             let sel: Vec<&Row> = rows.iter().filter(|r| r.group == g && r.method == method).collect();
             if sel.is_empty() {
                 continue;

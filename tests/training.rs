@@ -148,6 +148,28 @@ fn a_decorrelated_decaying_training_lowers_the_loss() {
 }
 
 #[test]
+fn the_weight_penalty_keeps_the_weights_near_their_start() {
+    // Fine-tuning a prior's decoder: the penalty on (w - w0)^2 must pull the
+    // weights back (a penalty of the wrong sign or on the wrong vector would not).
+    let paper = paper_problem(8, 3, 20_000, 0);
+    let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
+    let problem = Problem { scene: &paper.scene, targets, held_out, truth: Some(&paper.truth) };
+    let start = initial_model(&paper.scene, targets, 0).unwrap();
+    let drift = |weight_penalty: f64| {
+        let mut model = start.clone();
+        let settings = TrainSettings { iterations: 6, weight_penalty, ..exact_settings() };
+        train(&problem, &mut model, &settings, &mut |_, _, _| {}).unwrap();
+        model.w.iter().zip(&start.w).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
+    };
+    let (free, held) = (drift(0.0), drift(1e9));
+    assert!(free > 0.0 && held < 0.5 * free, "drift without penalty {free:.3e}, with {held:.3e}");
+    let mut model = start.clone();
+    let bad = TrainSettings { weight_penalty: -1.0, ..exact_settings() };
+    let e = train(&problem, &mut model, &bad, &mut |_, _, _| {}).unwrap_err().to_string();
+    assert!(e.contains("weight_penalty"), "{e}");
+}
+
+#[test]
 fn benchmarks_run_at_smoke_size() {
     for (bin, name) in [(env!("CARGO_BIN_EXE_bench_render"), "render"), (env!("CARGO_BIN_EXE_bench_grad"), "grad")] {
         let dir = std::env::temp_dir().join(format!("dualphoton-bench-{name}-{}", std::process::id()));

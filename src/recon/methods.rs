@@ -52,6 +52,54 @@ impl Default for PriorFitArgs {
     }
 }
 
+/// Fine-tuning a learned prior's decoder weights after its latent fit (a
+/// study: `prior_eval --methods prior_tune`; not part of the default fit).
+#[derive(clap::Args, Clone, Debug, PartialEq, Serialize)]
+pub struct PriorTuneArgs {
+    /// Updates of latent and weights after the latent fit (guided forward-mode directions for the weights).
+    #[arg(long, default_value_t = 40)]
+    pub prior_tune: usize,
+    /// Adam step of the weights while fine-tuning.
+    #[arg(long, default_value_t = 3e-4)]
+    pub prior_tune_lr: f64,
+    /// Weight of the penalty mean((w - w_prior)^2), relative to the images' mean square.
+    #[arg(long, default_value_t = 100.0)]
+    pub prior_tune_penalty: f64,
+    /// Forward-mode directions for the weights per update.
+    #[arg(long, default_value_t = 8)]
+    pub prior_tune_directions: usize,
+}
+
+impl Default for PriorTuneArgs {
+    fn default() -> Self {
+        PriorTuneArgs { prior_tune: 40, prior_tune_lr: 3e-4, prior_tune_penalty: 100.0, prior_tune_directions: 8 }
+    }
+}
+
+/// Seed offset of the fine-tuning updates' renders (other noise than the latent fit's).
+const TUNE_SEED: u64 = 0x7475_6e65;
+
+/// The training that fine-tunes a learned prior after its latent fit by
+/// `fit`: latent and weights at full resolution, the weights by `tune`'s
+/// guided directions under a penalty that keeps them near the prior.
+pub fn prior_tuning(fit: &PriorFitArgs, tune: &PriorTuneArgs, r: UpdateRenders) -> TrainSettings {
+    TrainSettings {
+        iterations: tune.prior_tune,
+        gradient: EstimatorSettings {
+            estimator: fit.prior_estimator,
+            weight_directions: tune.prior_tune_directions,
+            weight_mode: WeightDirections::Guided,
+            ..EstimatorSettings::default()
+        },
+        lr_latent: fit.prior_lr,
+        lr_weights: tune.prior_tune_lr,
+        coarse_fraction: 0.0,
+        latent_penalty: fit.prior_penalty,
+        weight_penalty: tune.prior_tune_penalty,
+        ..training(UpdateRenders { seed: r.seed ^ TUNE_SEED, ..r })
+    }
+}
+
 /// What every update renders with, for both methods (command-line options
 /// of every program that reconstructs; the seed is the program's own).
 #[derive(clap::Args, Clone, Copy, Debug, PartialEq, Serialize)]
@@ -258,6 +306,8 @@ mod tests {
         prior: PriorFitArgs,
         #[command(flatten)]
         renders: UpdateRenders,
+        #[command(flatten)]
+        tune: PriorTuneArgs,
     }
 
     #[test]
@@ -267,6 +317,7 @@ mod tests {
         assert_eq!(cli.paper, PaperFitArgs::default());
         assert_eq!(cli.prior, PriorFitArgs::default());
         assert_eq!(cli.renders, UpdateRenders::default());
+        assert_eq!(cli.tune, PriorTuneArgs::default());
     }
 
     #[test]

@@ -71,6 +71,11 @@ pub struct TrainSettings {
     /// (so the weight is relative to the image loss): the prior of a
     /// learned decoder, whose latents are whitened (0: none).
     pub latent_penalty: f64,
+    /// Weight of a penalty keeping the decoder weights near their values at
+    /// the start of training, `weight_penalty * s * mean_i (w_i - w0_i)^2`
+    /// (`s` as for `latent_penalty`): fine-tuning a learned prior's decoder
+    /// without leaving the prior (0: none).
+    pub weight_penalty: f64,
 }
 
 impl Default for TrainSettings {
@@ -89,6 +94,7 @@ impl Default for TrainSettings {
             decorrelate: false,
             sparsity: 0.0,
             latent_penalty: 0.0,
+            weight_penalty: 0.0,
         }
     }
 }
@@ -138,9 +144,12 @@ pub fn train(
     if !(settings.lr_final.is_finite() && settings.lr_final > 0.0) {
         return Err(Error(format!("lr_final: {} must be finite and > 0", settings.lr_final)));
     }
-    if !(settings.latent_penalty.is_finite() && settings.latent_penalty >= 0.0) {
-        return Err(Error(format!("latent_penalty: {} must be finite and >= 0", settings.latent_penalty)));
+    for (name, v) in [("latent_penalty", settings.latent_penalty), ("weight_penalty", settings.weight_penalty)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(Error(format!("{name}: {v} must be finite and >= 0")));
+        }
     }
+    let anchor = model.w.clone();
     let start = Instant::now();
     let mut adam_z = Adam::new(model.z.len(), settings.lr_latent);
     let mut adam_w = Adam::new(model.w.len(), settings.lr_weights);
@@ -195,6 +204,12 @@ pub fn train(
             for (&i, v) in g.latent.indices.iter().zip(&mut g.latent.values) {
                 *v += scale * model.z[i];
             }
+        }
+        if settings.weight_penalty > 0.0 {
+            let scale = 2.0 * settings.weight_penalty * target_power / model.w.len().max(1) as f64;
+            let mut dense = g.weights.to_dense(model.w.len()).unwrap_or_else(|| vec![0.0; model.w.len()]);
+            dense.iter_mut().zip(model.w.iter().zip(&anchor)).for_each(|(d, (w, w0))| *d += scale * (w - w0));
+            g.weights = Entries::dense(dense);
         }
         adam_z.step_sparse(&mut model.z, &g.latent.indices, &g.latent.values);
         adam_w.step_sparse(&mut model.w, &g.weights.indices, &g.weights.values);
