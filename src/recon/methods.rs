@@ -34,6 +34,9 @@ pub struct PriorFitArgs {
     /// within 3 minutes on 2 cores (validation plume val0: 100 updates 122 s, 300 updates 235 s).
     #[arg(long, default_value_t = 200)]
     pub prior_refine: usize,
+    /// With a prior: the refinement also fits one global density factor (see --refine-global).
+    #[arg(long)]
+    pub prior_refine_global: bool,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).
     #[arg(long, value_enum, default_value = "fwd-full")]
     pub prior_estimator: Estimator,
@@ -47,6 +50,7 @@ impl Default for PriorFitArgs {
             prior_penalty: 1e-3,
             prior_coarse_fraction: 0.5,
             prior_refine: 200,
+            prior_refine_global: false,
             prior_estimator: Estimator::FwdFull,
         }
     }
@@ -177,6 +181,10 @@ pub struct PaperFitArgs {
     /// Stop the refinement after this many seconds (at most --refine updates). Default: none.
     #[arg(long)]
     pub refine_budget: Option<f64>,
+    /// The refinement also fits one global density factor beside the per-voxel ones: its gradient sums
+    /// every voxel's, so it corrects the total mass within a few updates.
+    #[arg(long)]
+    pub refine_global: bool,
 }
 
 impl Default for PaperFitArgs {
@@ -197,6 +205,7 @@ impl Default for PaperFitArgs {
             refine_lr: 0.02,
             refine_penalty: 0.0,
             refine_budget: None,
+            refine_global: false,
         }
     }
 }
@@ -237,6 +246,7 @@ pub fn paper_method(
         lr: fit.refine_lr,
         penalty: fit.refine_penalty,
         time_budget: fit.refine_budget,
+        global: fit.refine_global,
         ..refinement(fit.refine, r)
     };
     Ok(s)
@@ -288,7 +298,7 @@ pub fn prior_method(
         ..training(r)
     };
     let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
-    s.refine = refinement(fit.prior_refine, r);
+    s.refine = RefineSettings { global: fit.prior_refine_global, ..refinement(fit.prior_refine, r) };
     s.prior = Some(prior);
     s
 }

@@ -1,5 +1,6 @@
 //! A final refinement after training: every hull voxel gets its own factor,
-//! `density = decoded * exp(s)`, and Adam fits the log-factors `s` to the
+//! `density = decoded * exp(s)` (optionally times one global factor,
+//! `exp(g + s)`), and Adam fits the log-factors to the
 //! training images by reverse mode (the renderer's exact `dL/d density`;
 //! no decoder in between, so nothing limits how closely the images can be
 //! explained), with a penalty `penalty * mean(s^2)` that keeps the density
@@ -40,6 +41,11 @@ pub struct RefineSettings {
     pub seed: u64,
     /// Stop after this many seconds (at most `updates`), if given.
     pub time_budget: Option<f64>,
+    /// Also fit one global log-factor `g` (its own Adam, not penalised):
+    /// its gradient sums every voxel's, so it is far less noisy than any one
+    /// voxel's and corrects the total mass in a few updates, where the
+    /// per-voxel factors follow their noisy gradients only slowly.
+    pub global: bool,
 }
 
 impl Default for RefineSettings {
@@ -53,6 +59,7 @@ impl Default for RefineSettings {
             decorrelate: false,
             seed: 0,
             time_budget: None,
+            global: false,
         }
     }
 }
@@ -74,22 +81,24 @@ pub fn refine(
     let level = Level::full(problem, &model.mask);
     let hull: Vec<usize> = (0..base.data.len()).filter(|&i| model.mask[i] && base.data[i] > 0.0).collect();
     let mut s = vec![0.0; hull.len()];
+    let mut g = [0.0];
     let mut adam = Adam::new(hull.len(), settings.lr);
-    let density_of = |s: &[f64]| {
+    let mut adam_g = Adam::new(1, settings.lr);
+    let density_of = |s: &[f64], g: f64| {
         let mut d = base.clone();
-        hull.iter().zip(s).for_each(|(&i, &si)| d.data[i] *= si.exp());
+        hull.iter().zip(s).for_each(|(&i, &si)| d.data[i] *= (g + si).exp());
         d
     };
     for u in 0..settings.updates {
         if settings.time_budget.is_some_and(|b| start.elapsed().as_secs_f64() >= b) {
             break;
         }
-        let density = density_of(&s);
+        let density = density_of(&s, g[0]);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
         observe(&log_row(first + u, problem, &level, &model.mask, &density, &frozen, start.elapsed().as_secs_f64()));
-        let g = if settings.decorrelate {
+        let grad = if settings.decorrelate {
             let (photons, spp) = (settings.photons, settings.spp);
             let shifted = level.with_independent_residual(&density, &frozen.images, photons, spp, seed ^ 1);
             reverse_gradient(&frozen, &shifted.targets, Subset::full()).grad
@@ -97,11 +106,14 @@ pub fn refine(
             reverse_gradient(&frozen, &level.targets, Subset::full()).grad
         };
         let n = hull.len().max(1) as f64;
-        let gs: Vec<f64> =
-            hull.iter().zip(&s).map(|(&i, &si)| g[i] * density.data[i] + 2.0 * settings.penalty * si / n).collect();
+        let image_part: Vec<f64> = hull.iter().map(|&i| grad[i] * density.data[i]).collect();
+        if settings.global {
+            adam_g.step(&mut g, &[image_part.iter().sum::<f64>()]);
+        }
+        let gs: Vec<f64> = image_part.iter().zip(&s).map(|(gi, si)| gi + 2.0 * settings.penalty * si / n).collect();
         adam.step(&mut s, &gs);
     }
-    Ok(density_of(&s))
+    Ok(density_of(&s, g[0]))
 }
 
 /// Sets the refinement's render seeds apart from training's.
