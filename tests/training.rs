@@ -297,3 +297,29 @@ fn the_global_factor_corrects_the_mass_faster() {
     eprintln!("mass after 10 updates, target 1.5: per-voxel {local:.3}, with the global factor {global:.3}");
     assert!(global > local + 0.05 && global < 1.6, "per-voxel {local:.3}, global {global:.3}");
 }
+
+#[test]
+fn the_additive_term_fills_voxels_the_decoder_leaves_empty() {
+    // Targets rendered from the model's density plus a uniform 0.02 in the
+    // hull: the decoder's empty hull voxels must fill (a factor cannot),
+    // and nothing outside the hull may.
+    let paper = paper_problem(8, 3, 20_000, 0);
+    let model = initial_model(&paper.scene, &paper.images[..HELD_OUT_CAMERA], 0).unwrap();
+    let base = model.density(&paper.scene.density);
+    let mut scene = paper.scene.clone();
+    scene.density = base.clone();
+    scene.density.data.iter_mut().zip(&model.mask).filter(|(_, &m)| m).for_each(|(v, _)| *v += 0.02);
+    let images = render_photon(&scene).images;
+    let (targets, held_out) = images.split_at(HELD_OUT_CAMERA);
+    let problem = Problem { scene: &scene, targets, held_out, truth: None };
+    let empty: Vec<usize> = (0..base.data.len()).filter(|&i| model.mask[i] && base.data[i] == 0.0).collect();
+    assert!(!empty.is_empty(), "the test needs hull voxels the decoder leaves at 0");
+    let settings =
+        RefineSettings { updates: 30, lr: 0.1, photons: 5_000, seed: 1, additive: true, ..RefineSettings::default() };
+    let refined = refine(&problem, &model, &settings, 0, &mut |_| {}).unwrap();
+    let filled = empty.iter().map(|&i| refined.data[i]).sum::<f64>() / empty.len() as f64;
+    eprintln!("{} empty hull voxels, mean density after 30 updates {filled:.4} (target 0.02)", empty.len());
+    assert!(filled > 0.003 && filled < 0.05, "{filled}");
+    assert!(refined.data.iter().zip(&model.mask).all(|(v, &m)| m || *v == 0.0));
+    assert!(refined.data.iter().all(|v| v.is_finite() && *v >= 0.0));
+}

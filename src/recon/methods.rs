@@ -37,6 +37,9 @@ pub struct PriorFitArgs {
     /// With a prior: the refinement also fits one global density factor (see --refine-global).
     #[arg(long)]
     pub prior_refine_global: bool,
+    /// With a prior: the refinement also adds a non-negative density to every hull voxel (see --refine-additive).
+    #[arg(long)]
+    pub prior_refine_additive: bool,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).
     #[arg(long, value_enum, default_value = "fwd-full")]
     pub prior_estimator: Estimator,
@@ -51,6 +54,7 @@ impl Default for PriorFitArgs {
             prior_coarse_fraction: 0.5,
             prior_refine: 200,
             prior_refine_global: false,
+            prior_refine_additive: false,
             prior_estimator: Estimator::FwdFull,
         }
     }
@@ -185,6 +189,10 @@ pub struct PaperFitArgs {
     /// every voxel's, so it corrects the total mass within a few updates.
     #[arg(long)]
     pub refine_global: bool,
+    /// The refinement also adds a non-negative density of its own to every hull voxel, so that it can fill
+    /// regions where the decoder gives exactly 0 (a factor cannot).
+    #[arg(long)]
+    pub refine_additive: bool,
 }
 
 impl Default for PaperFitArgs {
@@ -206,6 +214,7 @@ impl Default for PaperFitArgs {
             refine_penalty: 0.0,
             refine_budget: None,
             refine_global: false,
+            refine_additive: false,
         }
     }
 }
@@ -247,6 +256,7 @@ pub fn paper_method(
         penalty: fit.refine_penalty,
         time_budget: fit.refine_budget,
         global: fit.refine_global,
+        additive: fit.refine_additive,
         ..refinement(fit.refine, r)
     };
     Ok(s)
@@ -298,7 +308,11 @@ pub fn prior_method(
         ..training(r)
     };
     let mut s = ReconstructSettings::paper(train, final_photons, final_spp);
-    s.refine = RefineSettings { global: fit.prior_refine_global, ..refinement(fit.prior_refine, r) };
+    s.refine = RefineSettings {
+        global: fit.prior_refine_global,
+        additive: fit.prior_refine_additive,
+        ..refinement(fit.prior_refine, r)
+    };
     s.prior = Some(prior);
     s
 }

@@ -1,10 +1,11 @@
 //! A final refinement after training: every hull voxel gets its own factor,
 //! `density = decoded * exp(s)` (optionally times one global factor,
-//! `exp(g + s)`), and Adam fits the log-factors to the
-//! training images by reverse mode (the renderer's exact `dL/d density`;
-//! no decoder in between, so nothing limits how closely the images can be
-//! explained), with a penalty `penalty * mean(s^2)` that keeps the density
-//! near the decoder's. Voxels where the decoder gives 0 stay 0.
+//! `exp(g + s)`, and plus a non-negative term `a` of its own), and Adam
+//! fits them to the training images by reverse mode (the renderer's exact
+//! `dL/d density`; no decoder in between, so nothing limits how closely
+//! the images can be explained), with a penalty `penalty * mean(s^2)` that
+//! keeps the density near the decoder's. Without the additive term, voxels
+//! where the decoder gives 0 stay 0.
 //!
 //! It exists because the decoder, trained through a noisy renderer, fits
 //! its own training images only slowly; the refinement closes the rest of
@@ -46,6 +47,11 @@ pub struct RefineSettings {
     /// voxel's and corrects the total mass in a few updates, where the
     /// per-voxel factors follow their noisy gradients only slowly.
     pub global: bool,
+    /// Also give every hull voxel a term `a >= 0` added to its density
+    /// (projected Adam, step `lr` times the mean non-zero decoded density):
+    /// a decoder's ReLU output is exactly 0 in whole regions of the hull,
+    /// which a factor cannot fill.
+    pub additive: bool,
 }
 
 impl Default for RefineSettings {
@@ -60,6 +66,7 @@ impl Default for RefineSettings {
             seed: 0,
             time_budget: None,
             global: false,
+            additive: false,
         }
     }
 }
@@ -79,21 +86,24 @@ pub fn refine(
     let start = Instant::now();
     let base = model.density(&problem.scene.density);
     let level = Level::full(problem, &model.mask);
-    let hull: Vec<usize> = (0..base.data.len()).filter(|&i| model.mask[i] && base.data[i] > 0.0).collect();
-    let mut s = vec![0.0; hull.len()];
-    let mut g = [0.0];
+    let hull: Vec<usize> =
+        (0..base.data.len()).filter(|&i| model.mask[i] && (settings.additive || base.data[i] > 0.0)).collect();
+    let nonzero: Vec<f64> = hull.iter().map(|&i| base.data[i]).filter(|&v| v > 0.0).collect();
+    let mean_nonzero = nonzero.iter().sum::<f64>() / nonzero.len().max(1) as f64;
+    let (mut s, mut a, mut g) = (vec![0.0; hull.len()], vec![0.0; hull.len()], [0.0]);
     let mut adam = Adam::new(hull.len(), settings.lr);
+    let mut adam_a = Adam::new(hull.len(), settings.lr * mean_nonzero);
     let mut adam_g = Adam::new(1, settings.lr);
-    let density_of = |s: &[f64], g: f64| {
+    let density_of = |s: &[f64], a: &[f64], g: f64| {
         let mut d = base.clone();
-        hull.iter().zip(s).for_each(|(&i, &si)| d.data[i] *= (g + si).exp());
+        hull.iter().zip(s.iter().zip(a)).for_each(|(&i, (&si, &ai))| d.data[i] = d.data[i] * (g + si).exp() + ai);
         d
     };
     for u in 0..settings.updates {
         if settings.time_budget.is_some_and(|b| start.elapsed().as_secs_f64() >= b) {
             break;
         }
-        let density = density_of(&s, g[0]);
+        let density = density_of(&s, &a, g[0]);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
@@ -106,14 +116,20 @@ pub fn refine(
             reverse_gradient(&frozen, &level.targets, Subset::full()).grad
         };
         let n = hull.len().max(1) as f64;
-        let image_part: Vec<f64> = hull.iter().map(|&i| grad[i] * density.data[i]).collect();
+        // d density / d s = d density / d g = the multiplicative part, density - a.
+        let image_part: Vec<f64> = hull.iter().zip(&a).map(|(&i, ai)| grad[i] * (density.data[i] - ai)).collect();
         if settings.global {
             adam_g.step(&mut g, &[image_part.iter().sum::<f64>()]);
+        }
+        if settings.additive {
+            let ga: Vec<f64> = hull.iter().map(|&i| grad[i]).collect();
+            adam_a.step(&mut a, &ga);
+            a.iter_mut().for_each(|ai| *ai = ai.max(0.0));
         }
         let gs: Vec<f64> = image_part.iter().zip(&s).map(|(gi, si)| gi + 2.0 * settings.penalty * si / n).collect();
         adam.step(&mut s, &gs);
     }
-    Ok(density_of(&s, g[0]))
+    Ok(density_of(&s, &a, g[0]))
 }
 
 /// Sets the refinement's render seeds apart from training's.
