@@ -34,11 +34,13 @@ pub struct PriorFitArgs {
     /// within 3 minutes on 2 cores (validation plume val0: 100 updates 122 s, 300 updates 235 s).
     #[arg(long, default_value_t = 200)]
     pub prior_refine: usize,
-    /// With a prior: the refinement also fits one global density factor (see --refine-global).
-    #[arg(long)]
+    /// With a prior: the refinement also fits one global density factor (see --refine-global;
+    /// `--prior-refine-global false`: none).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub prior_refine_global: bool,
-    /// With a prior: the refinement also adds a non-negative density to every hull voxel (see --refine-additive).
-    #[arg(long)]
+    /// With a prior: the refinement also adds a non-negative density to every hull voxel (see
+    /// --refine-additive; `--prior-refine-additive false`: factors only).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub prior_refine_additive: bool,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).
     #[arg(long, value_enum, default_value = "fwd-full")]
@@ -53,8 +55,8 @@ impl Default for PriorFitArgs {
             prior_penalty: 1e-3,
             prior_coarse_fraction: 0.5,
             prior_refine: 200,
-            prior_refine_global: false,
-            prior_refine_additive: false,
+            prior_refine_global: true,
+            prior_refine_additive: true,
             prior_estimator: Estimator::FwdFull,
         }
     }
@@ -186,12 +188,12 @@ pub struct PaperFitArgs {
     #[arg(long)]
     pub refine_budget: Option<f64>,
     /// The refinement also fits one global density factor beside the per-voxel ones: its gradient sums
-    /// every voxel's, so it corrects the total mass within a few updates.
-    #[arg(long)]
+    /// every voxel's, so it corrects the total mass within a few updates (`--refine-global false`: none).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub refine_global: bool,
     /// The refinement also adds a non-negative density of its own to every hull voxel, so that it can fill
-    /// regions where the decoder gives exactly 0 (a factor cannot).
-    #[arg(long)]
+    /// regions where the decoder gives exactly 0 (a factor cannot); `--refine-additive false`: factors only.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub refine_additive: bool,
 }
 
@@ -213,8 +215,8 @@ impl Default for PaperFitArgs {
             refine_lr: 0.02,
             refine_penalty: 0.0,
             refine_budget: None,
-            refine_global: false,
-            refine_additive: false,
+            refine_global: true,
+            refine_additive: true,
         }
     }
 }
