@@ -195,6 +195,9 @@ struct Row {
     mass_error: f64,
     held_out_rel_rmse: f64,
     blur_ceiling_r: f64,
+    /// Fraction of the truth's mass in voxels the estimate leaves at 0 (None in rows written before it was recorded).
+    #[serde(default)]
+    empty_truth_mass: Option<f64>,
     wall_s: f64,
     updates: usize,
 }
@@ -225,6 +228,7 @@ impl Row {
             mass_error: m.mass_error,
             held_out_rel_rmse: held,
             blur_ceiling_r: m.blur_ceiling_r,
+            empty_truth_mass: Some(m.empty_truth_mass),
             wall_s,
             updates,
         }
@@ -403,14 +407,14 @@ fn table_markdown(rows: &[Row]) -> String {
          Block measures are over 2x2x2 blocks at least half inside the visual hull; voxel measures over the hull \
          voxels (both over the default hull, whatever hull the fit ran in); the ceiling is r of the truth against \
          itself blurred by one voxel; fit hull: the voxels the fit ran in and the fraction of the truth's mass \
-         outside them.\n\n\
-         | plume | group | method | fit hull (carved mass) | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | held-out RMSE | wall s |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         outside them; empty: the fraction of the truth's mass where the estimate is 0.\n\n\
+         | plume | group | method | fit hull (carved mass) | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | empty | held-out RMSE | wall s |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {:.1} % | {:.0} |",
+            "| {} | {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {} | {:.1} % | {:.0} |",
             r.plume,
             r.group,
             r.method,
@@ -427,6 +431,7 @@ fn table_markdown(rows: &[Row]) -> String {
             r.rel_l1_epsilon,
             100.0 * r.max_error,
             100.0 * r.mass_error,
+            r.empty_truth_mass.map_or("—".into(), |e| format!("{:.1} %", 100.0 * e)),
             100.0 * r.held_out_rel_rmse,
             r.wall_s
         );

@@ -32,6 +32,10 @@ pub struct DensityMetrics {
     pub blur_ceiling_r: f64,
     /// The truth's largest voxel density after that blur.
     pub blurred_truth_max: f64,
+    /// Fraction of the truth's mass over the hull in voxels the estimate
+    /// leaves at exactly 0 (a decoder's ReLU output is 0 in whole regions;
+    /// a refinement by factors alone cannot fill them).
+    pub empty_truth_mass: f64,
 }
 
 /// Measures `estimate` against `truth` (both cubic grids of one shape)
@@ -58,6 +62,15 @@ pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -
         block_max_error: rel(max(&in_blocks(&eb)), max(&in_blocks(&tb))),
         blur_ceiling_r: pearson(t, &blurred.data, mask),
         blurred_truth_max: max(&in_hull(&blurred.data)),
+        empty_truth_mass: {
+            let empty: f64 = eh.iter().zip(&th).filter(|(&e, _)| e == 0.0).map(|(_, &t)| t).sum();
+            let total = sum(&th);
+            if total > 0.0 {
+                empty / total
+            } else {
+                0.0
+            }
+        },
     }
 }
 
@@ -74,10 +87,16 @@ mod tests {
         assert!((m.pearson_r - 1.0).abs() < 1e-12 && m.rel_l1_epsilon == 0.0 && m.mass_error == 0.0);
         assert!((m.block_pearson_r - 1.0).abs() < 1e-12 && m.block_max_error == 0.0);
         assert!(m.blur_ceiling_r > 0.9 && m.blur_ceiling_r < 1.0, "{m:?}");
+        assert_eq!(m.empty_truth_mass, 0.0);
         let mut e = t.clone();
         e.data.iter_mut().for_each(|v| *v *= 1.1);
         let m = density_metrics(&e, &t, &mask);
         assert!((m.pearson_r - 1.0).abs() < 1e-12 && (m.mass_error - 0.1).abs() < 1e-12);
         assert!((m.max_error - 0.1).abs() < 1e-12 && (m.block_rel_l1_epsilon - 0.1).abs() < 1e-12);
+        // An estimate empty in half the voxels misses the truth's mass there.
+        let mut e = t.clone();
+        e.data.iter_mut().step_by(2).for_each(|v| *v = 0.0);
+        let missing: f64 = t.data.iter().step_by(2).sum::<f64>() / t.data.iter().sum::<f64>();
+        assert!((density_metrics(&e, &t, &mask).empty_truth_mass - missing).abs() < 1e-12);
     }
 }
