@@ -306,27 +306,29 @@ fn run(args: Args) -> Result<()> {
                 settings.hull = hull;
                 let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
                 eprintln!();
-                let (region, fit) = measured_region(&default_hull, &r.model.mask, &truth);
+                let (region, fit_hull) = measured_region(&default_hull, &r.model.mask, &truth);
                 let m = density_metrics(&r.estimated, &truth, &region);
                 let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
-                let row = Row::new(which, "paper", &m, &fit, held, t0.elapsed().as_secs_f64(), r.log.len());
+                let row = Row::new(which, "paper", &m, &fit_hull, held, t0.elapsed().as_secs_f64(), r.log.len());
                 save("paper", &r.estimated, &row)?;
                 continue;
             }
             let Some(prior) = &prior else { continue };
-            let fit = PriorFitArgs { prior_refine: 0, ..args.fit.clone() };
-            let mut settings = prior_method(prior.clone(), &fit, renders, fp, fs);
+            let mut settings = prior_method(prior.clone(), &args.fit, renders, fp, fs);
             settings.hull = hull;
+            // The refinement runs below, after the row of the latent fit (or its tuning).
+            let refinement = settings.refine.clone();
+            settings.refine.updates = 0;
             let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
             eprintln!();
-            let (region, fit) = measured_region(&default_hull, &r.model.mask, &truth);
+            let (region, fit_hull) = measured_region(&default_hull, &r.model.mask, &truth);
             let measure = |density: &Grid<f64>, images: &[Image]| {
                 (density_metrics(density, &truth, &region), rel_rmse(&images[n_train].data, &held_out[0].data))
             };
             let (mut model, mut updates) = (r.model.clone(), r.log.len());
             if method == "prior" {
                 let (m, held) = measure(&r.estimated, &r.final_images);
-                let row = Row::new(which, "prior", &m, &fit, held, t0.elapsed().as_secs_f64(), updates);
+                let row = Row::new(which, "prior", &m, &fit_hull, held, t0.elapsed().as_secs_f64(), updates);
                 save("prior", &r.estimated, &row)?;
             } else {
                 let tuning = prior_tuning(&args.fit, &args.tune, renders);
@@ -340,19 +342,18 @@ fn run(args: Args) -> Result<()> {
                 save(
                     "prior_tune",
                     &density,
-                    &Row::new(which, "prior_tune", &m, &fit, held, t0.elapsed().as_secs_f64(), updates),
+                    &Row::new(which, "prior_tune", &m, &fit_hull, held, t0.elapsed().as_secs_f64(), updates),
                 )?;
             }
-            if args.fit.prior_refine > 0 {
-                let full = prior_method(prior.clone(), &args.fit, renders, fp, fs);
-                let refined = refine(&problem, &model, &full.refine, updates, &mut |row| {
+            if refinement.updates > 0 {
+                let refined = refine(&problem, &model, &refinement, updates, &mut |row| {
                     eprint!("\r{label} refine: update {} ({:.0} s)   ", row.iteration, row.wall_s)
                 })?;
                 eprintln!();
-                let (m, held) = measure(&refined, &final_render(&refined, &full));
+                let (m, held) = measure(&refined, &final_render(&refined, &settings));
                 let name = format!("{method}_refine");
-                let row =
-                    Row::new(which, &name, &m, &fit, held, t0.elapsed().as_secs_f64(), updates + args.fit.prior_refine);
+                let total = updates + refinement.updates;
+                let row = Row::new(which, &name, &m, &fit_hull, held, t0.elapsed().as_secs_f64(), total);
                 save(&name, &refined, &row)?;
             }
         }
