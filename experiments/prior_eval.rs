@@ -11,6 +11,13 @@
 //! - `prior_tune` (a study, on request): the latent fit, then latent and
 //!   decoder weights fine-tuned near the prior; `prior_tune_refine`: then
 //!   the refinement.
+//! - `oracle` (a study, on request): starts no reconstruction could have,
+//!   each measured as it is and after the prior's refinement: the truth
+//!   blurred as the prior learned it (`oracle_truth`, a perfect prior), and
+//!   the prior's latent fitted to that blurred truth directly, without
+//!   rendering (`oracle_latent`, the best the latent can represent); and
+//!   the truth itself, measured only (`oracle_exact`: its held-out error is
+//!   the render noise's floor).
 //!
 //! Resumable: each (plume, method) row is written as it finishes under
 //! `<out>/rows/`, and a later run skips the rows it finds (`--fresh`
@@ -30,6 +37,7 @@ use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::npy;
 use dualphoton::io::panels::labelled_strip;
 use dualphoton::io::rows::write_rows;
+use dualphoton::prior::train::fit_latent;
 use dualphoton::prior::Prior;
 use dualphoton::recon::hull::{visual_hull, HullSettings};
 use dualphoton::recon::methods::{
@@ -37,12 +45,13 @@ use dualphoton::recon::methods::{
 };
 use dualphoton::recon::paper;
 use dualphoton::recon::problem::{paper_problem_of, target_render, PaperProblem, Problem};
-use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
-use dualphoton::recon::refine::refine;
+use dualphoton::recon::reconstruct::{prior_model, reconstruct, ReconstructSettings};
+use dualphoton::recon::refine::{refine, refine_density};
 use dualphoton::recon::train::train;
 use dualphoton::render::path::{render_path, PathOptions};
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
+use dualphoton::volume::blur::gaussian_blur;
 use dualphoton::volume::Grid;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -63,7 +72,9 @@ struct Args {
     plumes: Option<String>,
     /// Methods, comma-separated: paper, prior (also writes prior_refine when --prior-refine > 0),
     /// prior_tune (a study: the latent fit, then --prior-tune updates of latent and decoder weights; also
-    /// writes prior_tune_refine).
+    /// writes prior_tune_refine), oracle (a study: the prior's refinement from the blurred truth,
+    /// oracle_truth[_refine], and from the latent fitted to it without rendering, oracle_latent[_refine]; also
+    /// oracle_exact, the truth measured as an estimate).
     #[arg(long, default_value = "paper,prior")]
     methods: String,
     /// The prior's directory.
@@ -97,9 +108,22 @@ struct Args {
 }
 
 /// The methods `--methods` names.
-const METHODS: [&str; 3] = ["paper", "prior", "prior_tune"];
+const METHODS: [&str; 4] = ["paper", "prior", "prior_tune", "oracle"];
 /// The rows a plume can have, in table order.
-const ROWS: [&str; 5] = ["paper", "prior", "prior_refine", "prior_tune", "prior_tune_refine"];
+const ROWS: [&str; 10] = [
+    "paper",
+    "prior",
+    "prior_refine",
+    "prior_tune",
+    "prior_tune_refine",
+    "oracle_exact",
+    "oracle_truth",
+    "oracle_truth_refine",
+    "oracle_latent",
+    "oracle_latent_refine",
+];
+/// The blur (voxels) `train_prior` learned its plumes with (models/plume64/manifest.json).
+const PRIOR_BLUR: f64 = 1.0;
 
 /// One plume of the evaluation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -253,7 +277,11 @@ fn run(args: Args) -> Result<()> {
     if let Some(m) = methods.iter().find(|m| !METHODS.contains(m)) {
         return Err(Error(format!("--methods: unknown method '{m}' ({})", METHODS.join(", "))));
     }
-    let prior = if methods.iter().any(|m| m.starts_with("prior")) { Some(Prior::load(&args.prior)?) } else { None };
+    let prior = if methods.iter().any(|m| m.starts_with("prior") || *m == "oracle") {
+        Some(Prior::load(&args.prior)?)
+    } else {
+        None
+    };
     let hull = HullSettings { threshold: args.hull_threshold, dilate: args.hull_dilate };
     let rows_dir = args.out.join("rows");
     let name = args.out.file_name().map_or("prior_eval".into(), |n| n.to_string_lossy().into_owned());
@@ -316,6 +344,50 @@ fn run(args: Args) -> Result<()> {
             let Some(prior) = &prior else { continue };
             let mut settings = prior_method(prior.clone(), &args.fit, renders, fp, fs);
             settings.hull = hull;
+            if method == "oracle" {
+                let mut decoded = prior_model(&scene, targets, prior, hull)?;
+                let mask = decoded.mask.clone();
+                let (region, fit_hull) = measured_region(&default_hull, &mask, &truth);
+                let blurred = gaussian_blur(&truth, PRIOR_BLUR);
+                // As train_prior's validation fits: 200 Adam steps of 0.05, its latent penalty.
+                (decoded.z, _) = fit_latent(&prior.decoder, &prior.w, &blurred.data, &decoded.z, 200, 0.05, 1e-4);
+                let mut in_hull = blurred.clone();
+                in_hull.data.iter_mut().zip(&mask).for_each(|(v, &m)| *v = if m { *v } else { 0.0 });
+                let first = settings.train.iterations;
+                // The truth itself, measured only: the floor of the held-out camera's error (render noise).
+                let t0 = Instant::now();
+                let held = rel_rmse(&final_render(&truth, &settings)[n_train].data, &held_out[0].data);
+                let m = density_metrics(&truth, &truth, &region);
+                save(
+                    "oracle_exact",
+                    &truth,
+                    &Row::new(which, "oracle_exact", &m, &fit_hull, held, t0.elapsed().as_secs_f64(), 0),
+                )?;
+                for (name, start) in [("oracle_truth", in_hull), ("oracle_latent", decoded.density(&scene.density))] {
+                    let t0 = Instant::now();
+                    let m = density_metrics(&start, &truth, &region);
+                    let held = rel_rmse(&final_render(&start, &settings)[n_train].data, &held_out[0].data);
+                    save(name, &start, &Row::new(which, name, &m, &fit_hull, held, t0.elapsed().as_secs_f64(), 0))?;
+                    let refined = refine_density(&problem, &start, &mask, &settings.refine, first, &mut |row| {
+                        eprint!("\r{label} {name} refine: update {} ({:.0} s)   ", row.iteration, row.wall_s)
+                    })?;
+                    eprintln!();
+                    let m = density_metrics(&refined, &truth, &region);
+                    let held = rel_rmse(&final_render(&refined, &settings)[n_train].data, &held_out[0].data);
+                    let name = format!("{name}_refine");
+                    let row = Row::new(
+                        which,
+                        &name,
+                        &m,
+                        &fit_hull,
+                        held,
+                        t0.elapsed().as_secs_f64(),
+                        settings.refine.updates,
+                    );
+                    save(&name, &refined, &row)?;
+                }
+                continue;
+            }
             // The refinement runs below, after the row of the latent fit (or its tuning).
             let refinement = settings.refine.clone();
             settings.refine.updates = 0;

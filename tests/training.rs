@@ -9,7 +9,7 @@ use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::level::Level;
 use dualphoton::recon::problem::{paper_problem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
-use dualphoton::recon::refine::{refine, RefineSettings};
+use dualphoton::recon::refine::{refine, refine_density, RefineSettings};
 use dualphoton::recon::train::{train, TrainSettings};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::render_photon;
@@ -322,4 +322,39 @@ fn the_additive_term_fills_voxels_the_decoder_leaves_empty() {
     assert!(filled > 0.003 && filled < 0.05, "{filled}");
     assert!(refined.data.iter().zip(&model.mask).all(|(v, &m)| m || *v == 0.0));
     assert!(refined.data.iter().all(|v| v.is_finite() && *v >= 0.0));
+}
+
+#[test]
+fn refining_a_given_density_is_refining_the_model_that_decodes_it() {
+    let paper = paper_problem(8, 3, 20_000, 0);
+    let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
+    let problem = Problem { scene: &paper.scene, targets, held_out, truth: None };
+    let model = initial_model(&paper.scene, targets, 0).unwrap();
+    let settings = RefineSettings { updates: 2, photons: 5_000, seed: 1, additive: true, ..RefineSettings::default() };
+    let base = model.density(&paper.scene.density);
+    let from_model = refine(&problem, &model, &settings, 3, &mut |_| {}).unwrap();
+    let from_density = refine_density(&problem, &base, &model.mask, &settings, 3, &mut |_| {}).unwrap();
+    assert_eq!(from_model.data, from_density.data);
+    let err = refine_density(&problem, &base, &model.mask[1..], &settings, 3, &mut |_| {}).unwrap_err();
+    assert!(err.0.contains("must match the scene's grid"), "{}", err.0);
+}
+
+#[test]
+fn the_averaged_refinement_is_the_mean_of_its_last_iterates() {
+    let paper = paper_problem(8, 3, 20_000, 0);
+    let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
+    let problem = Problem { scene: &paper.scene, targets, held_out, truth: None };
+    let model = initial_model(&paper.scene, targets, 0).unwrap();
+    let run = |updates: usize, average: f64| {
+        let settings = RefineSettings { updates, average, photons: 5_000, seed: 1, ..RefineSettings::default() };
+        refine(&problem, &model, &settings, 0, &mut |_| {})
+    };
+    let (third, fourth) = (run(3, 0.0).unwrap(), run(4, 0.0).unwrap());
+    let averaged = run(4, 0.5).unwrap();
+    for ((a, b), m) in third.data.iter().zip(&fourth.data).zip(&averaged.data) {
+        assert!((0.5 * (a + b) - m).abs() <= 1e-12 * m.abs().max(1e-12), "{a} {b} {m}");
+    }
+    assert_ne!(third.data, fourth.data, "the test needs iterates that differ");
+    let err = run(4, 1.5).unwrap_err();
+    assert!(err.0.contains("averaged fraction"), "{}", err.0);
 }

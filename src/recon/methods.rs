@@ -42,6 +42,10 @@ pub struct PriorFitArgs {
     /// --refine-additive; `--prior-refine-additive false`: factors only).
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub prior_refine_additive: bool,
+    /// With a prior: the refinement returns the mean density over this last fraction of its updates
+    /// (see --refine-average; 0: the last update's).
+    #[arg(long, default_value_t = 0.0)]
+    pub prior_refine_average: f64,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).
     #[arg(long, value_enum, default_value = "fwd-full")]
     pub prior_estimator: Estimator,
@@ -57,6 +61,7 @@ impl Default for PriorFitArgs {
             prior_refine: 200,
             prior_refine_global: true,
             prior_refine_additive: true,
+            prior_refine_average: 0.0,
             prior_estimator: Estimator::FwdFull,
         }
     }
@@ -195,6 +200,10 @@ pub struct PaperFitArgs {
     /// regions where the decoder gives exactly 0 (a factor cannot); `--refine-additive false`: factors only.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub refine_additive: bool,
+    /// The refinement returns the mean density over this last fraction of its updates, which carries less
+    /// of each update's render noise than the last one (0: the last update's density).
+    #[arg(long, default_value_t = 0.0)]
+    pub refine_average: f64,
 }
 
 impl Default for PaperFitArgs {
@@ -217,6 +226,7 @@ impl Default for PaperFitArgs {
             refine_budget: None,
             refine_global: true,
             refine_additive: true,
+            refine_average: 0.0,
         }
     }
 }
@@ -259,6 +269,7 @@ pub fn paper_method(
         time_budget: fit.refine_budget,
         global: fit.refine_global,
         additive: fit.refine_additive,
+        average: fit.refine_average,
         ..refinement(fit.refine, r)
     };
     Ok(s)
@@ -313,6 +324,7 @@ pub fn prior_method(
     s.refine = RefineSettings {
         global: fit.prior_refine_global,
         additive: fit.prior_refine_additive,
+        average: fit.prior_refine_average,
         ..refinement(fit.prior_refine, r)
     };
     s.prior = Some(prior);

@@ -52,6 +52,12 @@ pub struct RefineSettings {
     /// a decoder's ReLU output is exactly 0 in whole regions of the hull,
     /// which a factor cannot fill.
     pub additive: bool,
+    /// Return the mean of the densities after the last `average` fraction
+    /// of the updates instead of the last one (0: the last): every update
+    /// follows a noisy render, and the mean of the last iterates carries
+    /// less of that noise than any one of them. If a time budget stops the
+    /// updates before the window opens, the last iterate.
+    pub average: f64,
 }
 
 impl Default for RefineSettings {
@@ -67,6 +73,7 @@ impl Default for RefineSettings {
             time_budget: None,
             global: false,
             additive: false,
+            average: 0.0,
         }
     }
 }
@@ -80,14 +87,38 @@ pub fn refine(
     first: usize,
     observe: &mut dyn FnMut(&LogRow),
 ) -> Result<Grid<f64>> {
+    refine_density(problem, &model.density(&problem.scene.density), &model.mask, settings, first, observe)
+}
+
+/// [`refine`] from any density `base` (on the scene's grid, 0 outside
+/// `mask`), within the hull `mask`: how a start that came from elsewhere
+/// (a study's oracle) fares under the same refinement.
+pub fn refine_density(
+    problem: &Problem,
+    base: &Grid<f64>,
+    mask: &[bool],
+    settings: &RefineSettings,
+    first: usize,
+    observe: &mut dyn FnMut(&LogRow),
+) -> Result<Grid<f64>> {
     if !(settings.lr.is_finite() && settings.lr > 0.0 && settings.penalty.is_finite() && settings.penalty >= 0.0) {
         return Err(Error(format!("refine: lr {} must be > 0 and penalty {} >= 0", settings.lr, settings.penalty)));
     }
+    if !(0.0..=1.0).contains(&settings.average) {
+        return Err(Error(format!("refine: the averaged fraction {} must be within [0, 1]", settings.average)));
+    }
+    if base.shape != problem.scene.density.shape || mask.len() != base.data.len() {
+        return Err(Error(format!(
+            "refine: start grid {:?} and mask of {} voxels must match the scene's grid {:?}",
+            base.shape,
+            mask.len(),
+            problem.scene.density.shape
+        )));
+    }
     let start = Instant::now();
-    let base = model.density(&problem.scene.density);
-    let level = Level::full(problem, &model.mask);
+    let level = Level::full(problem, mask);
     let hull: Vec<usize> =
-        (0..base.data.len()).filter(|&i| model.mask[i] && (settings.additive || base.data[i] > 0.0)).collect();
+        (0..base.data.len()).filter(|&i| mask[i] && (settings.additive || base.data[i] > 0.0)).collect();
     let nonzero: Vec<f64> = hull.iter().map(|&i| base.data[i]).filter(|&v| v > 0.0).collect();
     let mean_nonzero = nonzero.iter().sum::<f64>() / nonzero.len().max(1) as f64;
     let (mut s, mut a, mut g) = (vec![0.0; hull.len()], vec![0.0; hull.len()], [0.0]);
@@ -99,6 +130,8 @@ pub fn refine(
         hull.iter().zip(s.iter().zip(a)).for_each(|(&i, (&si, &ai))| d.data[i] = d.data[i] * (g + si).exp() + ai);
         d
     };
+    let window = (settings.average * settings.updates as f64).round() as usize;
+    let (mut sum, mut summed) = (vec![0.0; base.data.len()], 0usize);
     for u in 0..settings.updates {
         if settings.time_budget.is_some_and(|b| start.elapsed().as_secs_f64() >= b) {
             break;
@@ -107,7 +140,7 @@ pub fn refine(
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
-        observe(&log_row(first + u, problem, &level, &model.mask, &density, &frozen, start.elapsed().as_secs_f64()));
+        observe(&log_row(first + u, problem, &level, mask, &density, &frozen, start.elapsed().as_secs_f64()));
         let grad = if settings.decorrelate {
             let (photons, spp) = (settings.photons, settings.spp);
             let shifted = level.with_independent_residual(&density, &frozen.images, photons, spp, seed ^ 1);
@@ -128,8 +161,16 @@ pub fn refine(
         }
         let gs: Vec<f64> = image_part.iter().zip(&s).map(|(gi, si)| gi + 2.0 * settings.penalty * si / n).collect();
         adam.step(&mut s, &gs);
+        if u + window >= settings.updates {
+            sum.iter_mut().zip(&density_of(&s, &a, g[0]).data).for_each(|(t, d)| *t += d);
+            summed += 1;
+        }
     }
-    Ok(density_of(&s, &a, g[0]))
+    let mut last = density_of(&s, &a, g[0]);
+    if summed > 0 {
+        last.data.iter_mut().zip(&sum).for_each(|(d, t)| *d = t / summed as f64);
+    }
+    Ok(last)
 }
 
 /// Sets the refinement's render seeds apart from training's.
