@@ -358,3 +358,32 @@ fn the_averaged_refinement_is_the_mean_of_its_last_iterates() {
     let err = run(4, 1.5).unwrap_err();
     assert!(err.0.contains("averaged fraction"), "{}", err.0);
 }
+
+#[test]
+fn prior_eval_runs_every_method_at_smoke_size() {
+    // A 16^3 prior from train_prior's smoke run, then one validation plume
+    // through every method of the evaluation with a few updates each.
+    let out = Command::new(env!("CARGO_BIN_EXE_train_prior")).arg("--smoke").output().unwrap();
+    assert!(out.status.success(), "train_prior: {}", String::from_utf8_lossy(&out.stderr));
+    let name = format!("dualphoton-prior-eval-{}", std::process::id());
+    let dir = std::env::temp_dir().join(&name);
+    let few = ["--iterations", "2", "--refine", "2", "--prior-updates", "2", "--prior-refine", "2"];
+    let out = Command::new(env!("CARGO_BIN_EXE_prior_eval"))
+        .args(["--res", "16", "--prior", "target/prior_smoke", "--plumes", "val0"])
+        .args(["--methods", "paper,prior,oracle", "--photons", "2000", "--spp", "1"])
+        .args(few)
+        .args(["--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(std::path::Path::new("cache").join(&name));
+    assert!(out.status.success(), "prior_eval: {}", String::from_utf8_lossy(&out.stderr));
+    let rows = ["paper", "prior", "prior_refine", "oracle_exact", "oracle_truth", "oracle_truth_refine"];
+    for row in rows.iter().chain(&["oracle_latent", "oracle_latent_refine"]) {
+        assert!(dir.join("rows").join(format!("val0_{row}.json")).exists(), "row {row} missing");
+    }
+    let table = std::fs::read_to_string(dir.join("table.md")).unwrap();
+    assert!(table.contains("| val0 | validation | oracle_truth_refine |"), "{table}");
+    // The truth measured as an estimate is exact.
+    let exact = std::fs::read_to_string(dir.join("rows/val0_oracle_exact.json")).unwrap();
+    assert!(exact.contains("\"rel_l1_epsilon\": 0.0"), "{exact}");
+}
