@@ -351,7 +351,7 @@ fn run(args: Args) -> Result<()> {
                 let blurred = gaussian_blur(&truth, PRIOR_BLUR);
                 // As train_prior's validation fits: 200 Adam steps of 0.05, its latent penalty.
                 (decoded.z, _) = fit_latent(&prior.decoder, &prior.w, &blurred.data, &decoded.z, 200, 0.05, 1e-4);
-                let mut in_hull = blurred.clone();
+                let mut in_hull = blurred;
                 in_hull.data.iter_mut().zip(&mask).for_each(|(v, &m)| *v = if m { *v } else { 0.0 });
                 let first = settings.train.iterations;
                 // The truth itself, measured only: the floor of the held-out camera's error (render noise).
