@@ -320,6 +320,10 @@ fn run(args: Args) -> Result<()> {
             (s.render.photons, s.render.spp, s.render.seed) = (fp, fs, settings.final_seed);
             render_photon(&s).images
         };
+        // Every row's measures: the density over the region, the held-out camera in the images.
+        let measure = |density: &Grid<f64>, region: &[bool], images: &[Image]| {
+            (density_metrics(density, &truth, region), rel_rmse(&images[n_train].data, &held_out[0].data))
+        };
         let save = |method: &str, density: &Grid<f64>, row: &Row| -> Result<()> {
             let text = serde_json::to_string_pretty(row).map_err(|e| Error(e.to_string()))?;
             std::fs::write(rows_dir.join(format!("{}_{method}.json", which.name())), text)?;
@@ -335,8 +339,7 @@ fn run(args: Args) -> Result<()> {
                 let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
                 eprintln!();
                 let (region, fit_hull) = measured_region(&default_hull, &r.model.mask, &truth);
-                let m = density_metrics(&r.estimated, &truth, &region);
-                let held = rel_rmse(&r.final_images[n_train].data, &held_out[0].data);
+                let (m, held) = measure(&r.estimated, &region, &r.final_images);
                 let row = Row::new(which, "paper", &m, &fit_hull, held, t0.elapsed().as_secs_f64(), r.log.len());
                 save("paper", &r.estimated, &row)?;
                 continue;
@@ -356,8 +359,7 @@ fn run(args: Args) -> Result<()> {
                 let first = settings.train.iterations;
                 // The truth itself, measured only: the floor of the held-out camera's error (render noise).
                 let t0 = Instant::now();
-                let held = rel_rmse(&final_render(&truth, &settings)[n_train].data, &held_out[0].data);
-                let m = density_metrics(&truth, &truth, &region);
+                let (m, held) = measure(&truth, &region, &final_render(&truth, &settings));
                 save(
                     "oracle_exact",
                     &truth,
@@ -365,15 +367,13 @@ fn run(args: Args) -> Result<()> {
                 )?;
                 for (name, start) in [("oracle_truth", in_hull), ("oracle_latent", decoded.density(&scene.density))] {
                     let t0 = Instant::now();
-                    let m = density_metrics(&start, &truth, &region);
-                    let held = rel_rmse(&final_render(&start, &settings)[n_train].data, &held_out[0].data);
+                    let (m, held) = measure(&start, &region, &final_render(&start, &settings));
                     save(name, &start, &Row::new(which, name, &m, &fit_hull, held, t0.elapsed().as_secs_f64(), 0))?;
                     let refined = refine_density(&problem, &start, &mask, &settings.refine, first, &mut |row| {
                         eprint!("\r{label} {name} refine: update {} ({:.0} s)   ", row.iteration, row.wall_s)
                     })?;
                     eprintln!();
-                    let m = density_metrics(&refined, &truth, &region);
-                    let held = rel_rmse(&final_render(&refined, &settings)[n_train].data, &held_out[0].data);
+                    let (m, held) = measure(&refined, &region, &final_render(&refined, &settings));
                     let name = format!("{name}_refine");
                     let row = Row::new(
                         which,
@@ -394,12 +394,9 @@ fn run(args: Args) -> Result<()> {
             let r = reconstruct(&problem, &settings, &mut |p| progress(p))?;
             eprintln!();
             let (region, fit_hull) = measured_region(&default_hull, &r.model.mask, &truth);
-            let measure = |density: &Grid<f64>, images: &[Image]| {
-                (density_metrics(density, &truth, &region), rel_rmse(&images[n_train].data, &held_out[0].data))
-            };
             let (mut model, mut updates) = (r.model.clone(), r.log.len());
             if method == "prior" {
-                let (m, held) = measure(&r.estimated, &r.final_images);
+                let (m, held) = measure(&r.estimated, &region, &r.final_images);
                 let row = Row::new(which, "prior", &m, &fit_hull, held, t0.elapsed().as_secs_f64(), updates);
                 save("prior", &r.estimated, &row)?;
             } else {
@@ -410,7 +407,7 @@ fn run(args: Args) -> Result<()> {
                 eprintln!();
                 updates += tuning.iterations;
                 let density = model.density(&scene.density);
-                let (m, held) = measure(&density, &final_render(&density, &settings));
+                let (m, held) = measure(&density, &region, &final_render(&density, &settings));
                 save(
                     "prior_tune",
                     &density,
@@ -422,7 +419,7 @@ fn run(args: Args) -> Result<()> {
                     eprint!("\r{label} refine: update {} ({:.0} s)   ", row.iteration, row.wall_s)
                 })?;
                 eprintln!();
-                let (m, held) = measure(&refined, &final_render(&refined, &settings));
+                let (m, held) = measure(&refined, &region, &final_render(&refined, &settings));
                 let name = format!("{method}_refine");
                 let total = updates + refinement.updates;
                 let row = Row::new(which, &name, &m, &fit_hull, held, t0.elapsed().as_secs_f64(), total);
