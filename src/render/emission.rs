@@ -7,6 +7,7 @@
 use crate::math::{cone_solid_angle, direction_around, intersect_box, Ray, Vec3};
 use crate::scene::Light;
 use crate::volume::Majorant;
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Cells per side of a projection map (equal solid angle each).
@@ -83,15 +84,18 @@ fn active_cells(e: &Emitter, majorant: &Majorant, lo: &Vec3, hi: &Vec3) -> Vec<u
         });
         hit
     };
-    let mut mark = vec![false; MAP * MAP];
-    for cu in 0..MAP {
-        for cv in 0..MAP {
-            mark[cu * MAP + cv] = (0..PROBES * PROBES).any(|s| {
+    // Every cell is probed on its own: in parallel, the same marks for any number of threads.
+    let mark: Vec<bool> = (0..MAP * MAP)
+        .into_par_iter()
+        .with_min_len(MAP)
+        .map(|cell| {
+            let (cu, cv) = ((cell / MAP) as f64, (cell % MAP) as f64);
+            (0..PROBES * PROBES).any(|s| {
                 let (a, b) = ((s / PROBES) as f64 + 0.5, (s % PROBES) as f64 + 0.5);
-                hits((cu as f64 + a / PROBES as f64) / MAP as f64, (cv as f64 + b / PROBES as f64) / MAP as f64)
-            });
-        }
-    }
+                hits((cu + a / PROBES as f64) / MAP as f64, (cv + b / PROBES as f64) / MAP as f64)
+            })
+        })
+        .collect();
     let mut dilated = vec![false; MAP * MAP];
     for cu in 0..MAP {
         for cv in 0..MAP {

@@ -188,16 +188,17 @@ fn for_each_pad(shape: [usize; 3], axis: usize, mut visit: impl FnMut(usize, [(u
     let stride = [1, nx, nx * ny][axis];
     let n = shape[2 - axis];
     let weights = if n >= 4 { [2.0, -1.0] } else { [1.0, 0.0] };
-    for v in 0..nz * ny * nx {
-        let c = v / stride % n;
-        let inward: isize = match c {
-            0 => 1,
-            _ if c == n - 1 => -1,
-            _ => continue,
-        };
-        let at = |d: isize| (v as isize + d * inward * stride as isize) as usize;
-        let second = if n >= 4 { at(2) } else { at(1) };
-        visit(v, [(at(1), weights[0]), (second, weights[1])]);
+    // Only the two faces across `axis`, in increasing flat order (the order
+    // in which reverse mode adds to a node is that of the forward pass).
+    for outer in 0..nz * ny * nx / (stride * n) {
+        for (c, inward) in [(0, 1isize), (n - 1, -1)] {
+            for rest in 0..stride {
+                let v = outer * stride * n + c * stride + rest;
+                let at = |d: isize| (v as isize + d * inward * stride as isize) as usize;
+                let second = if n >= 4 { at(2) } else { at(1) };
+                visit(v, [(at(1), weights[0]), (second, weights[1])]);
+            }
+        }
     }
 }
 
@@ -226,6 +227,34 @@ mod tests {
             })
             .collect();
         Grid::new(Vec3::from_element(-1.0), Vec3::from_element(1.0), [n, n, n], data)
+    }
+
+    /// Only the faces are walked, in the order a walk over every node visits
+    /// the pads (reverse mode's additions depend on it).
+    #[test]
+    fn pads_are_visited_as_a_full_walk_would() {
+        for shape in [[3, 3, 3], [4, 5, 6], [7, 3, 9], [66, 66, 66]] {
+            for axis in 0..3 {
+                let [nz, ny, nx] = shape;
+                let stride = [1, nx, nx * ny][axis];
+                let n = shape[2 - axis];
+                let mut want = vec![];
+                for v in 0..nz * ny * nx {
+                    let c = v / stride % n;
+                    let inward: isize = match c {
+                        0 => 1,
+                        _ if c == n - 1 => -1,
+                        _ => continue,
+                    };
+                    let at = |d: isize| (v as isize + d * inward * stride as isize) as usize;
+                    let second = if n >= 4 { at(2) } else { at(1) };
+                    want.push((v, at(1), second));
+                }
+                let mut got = vec![];
+                for_each_pad(shape, axis, |v, [(a, _), (b, _)]| got.push((v, a, b)));
+                assert_eq!(got, want, "shape {shape:?}, axis {axis}");
+            }
+        }
     }
 
     /// The reverse sweep of one node's depth equals the tape's derivative of
