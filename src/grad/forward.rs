@@ -66,7 +66,7 @@ pub enum Directions {
 /// `factor * Σ (∇L·v) v` unbiased. Orthonormal: at most `n` directions can
 /// be; any beyond the first `n` stay Gaussian.
 pub fn random_directions<const K: usize>(n: usize, kind: Directions, rng: &mut Rng) -> ([Vec<f64>; K], f64) {
-    let dirs: [Vec<f64>; K] = std::array::from_fn(|_| (0..n).map(|_| rng.normal()).collect());
+    let dirs: [Vec<f64>; K] = std::array::from_fn(|_| rng.normals(n));
     match kind {
         Directions::Gaussian => (dirs, 1.0 / K as f64),
         Directions::Orthonormal => {
