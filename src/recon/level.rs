@@ -7,6 +7,7 @@ use crate::image::Image;
 use crate::render::render_photon;
 use crate::scene::Scene;
 use crate::volume::Grid;
+use rayon::prelude::*;
 
 /// One resolution the training loop renders at.
 #[derive(Clone)]
@@ -133,18 +134,19 @@ impl Level {
 pub fn pool<R: Real>(g: &Grid<R>) -> Grid<R> {
     let [nz, ny, nx] = g.shape;
     let (cz, cy, cx) = (nz / 2, ny / 2, nx / 2);
-    let mut data = Vec::with_capacity(cz * cy * cx);
-    for k in 0..cz {
-        for j in 0..cy {
-            for i in 0..cx {
-                let mut s = R::cst(0.0);
-                for c in 0..8 {
-                    s += g.data[g.index(2 * k + (c >> 2), 2 * j + ((c >> 1) & 1), 2 * i + (c & 1))];
-                }
-                data.push(s * 0.125);
+    // Each block on its own (a dual grid is large): the same sums for any number of threads.
+    let data = (0..cz * cy * cx)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|b| {
+            let (k, j, i) = (b / (cy * cx), b / cx % cy, b % cx);
+            let mut s = R::cst(0.0);
+            for c in 0..8 {
+                s += g.data[g.index(2 * k + (c >> 2), 2 * j + ((c >> 1) & 1), 2 * i + (c & 1))];
             }
-        }
-    }
+            s * 0.125
+        })
+        .collect();
     Grid::new(g.lo, g.hi, [cz, cy, cx], data)
 }
 

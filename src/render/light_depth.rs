@@ -43,6 +43,8 @@ pub struct LightDepth {
     /// inside the occupied blocks can read, or a pad it reads depends on
     /// (the others stay 0, never read).
     nodes: Vec<usize>,
+    /// Per value of a depth grid: whether it is one of `nodes`.
+    marched: Vec<bool>,
     /// The lights, scene order.
     lights: Vec<Light>,
     /// Extinction per unit density.
@@ -74,8 +76,9 @@ impl LightDepth {
                 }
             });
         }
-        let nodes = (0..needed.len()).filter(|&v| needed[v] && !is_pad(shape, v)).collect();
-        LightDepth { lo, hi, shape, nodes, lights: lights.to_vec(), scale, seed }
+        let marched: Vec<bool> = (0..needed.len()).map(|v| needed[v] && !is_pad(shape, v)).collect();
+        let nodes = (0..needed.len()).filter(|&v| marched[v]).collect();
+        LightDepth { lo, hi, shape, nodes, marched, lights: lights.to_vec(), scale, seed }
     }
 
     /// The nodes that carry a depth (flat indices into the depth grids).
@@ -121,17 +124,16 @@ impl LightDepth {
                 if light.intensity <= 0.0 {
                     return None;
                 }
-                let values: Vec<R> = self
-                    .nodes
-                    .par_iter()
+                // Over the whole grid, not only the nodes: a grid of dual numbers is large, and
+                // filling it on one thread would be a serial part of every render.
+                let mut data: Vec<R> = (0..self.grid_len())
+                    .into_par_iter()
                     .with_min_len(CHUNK)
-                    .map(|&v| match self.shadow_ray(v, l, light) {
+                    .map(|v| match self.marched[v].then(|| self.shadow_ray(v, l, light)).flatten() {
                         Some((ray, dist, jitter)) => marcher.optical_depth(density, self.scale, &ray, dist, jitter),
                         None => R::cst(0.0),
                     })
                     .collect();
-                let mut data = vec![R::cst(0.0); self.grid_len()];
-                self.nodes.iter().zip(values).for_each(|(&v, d)| data[v] = d);
                 extrapolate_pads(self.shape, &mut data);
                 Some(Grid::new(self.lo, self.hi, self.shape, data))
             })
