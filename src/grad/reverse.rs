@@ -80,7 +80,10 @@ impl Scratch {
     }
 
     /// The touched leaves and their adjoints, in first-touch order; clears.
+    /// The touched leaves' adjoints, in increasing leaf order (so that a
+    /// merge can find a range of leaves by bisection), and a clean scratch.
     fn drain(&mut self) -> Vec<(u32, f64)> {
+        self.touched.sort_unstable();
         let out = self.touched.iter().map(|&l| (l, self.adjoint[l as usize])).collect();
         for &l in &self.touched {
             self.adjoint[l as usize] = 0.0;
@@ -128,19 +131,29 @@ fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut
             },
         )
         .collect();
-    let mut peak = 0;
-    for (part, p) in parts {
-        peak = peak.max(p);
-        for (l, a) in part {
-            total[l as usize] += a;
+    merge(&parts.iter().map(|(part, _)| part.as_slice()).collect::<Vec<_>>(), total);
+    parts.iter().map(|&(_, p)| p).max().unwrap_or(0)
+}
+
+/// Adds every part's `(leaf, adjoint)` pairs (each sorted by leaf) to
+/// `total`, in parallel over ranges of leaves; each leaf still receives its
+/// adjoints in part order, so the sums do not depend on the number of threads.
+fn merge(parts: &[&[(u32, f64)]], total: &mut [f64]) {
+    const RANGE: usize = 4096;
+    total.par_chunks_mut(RANGE).enumerate().for_each(|(r, range)| {
+        let (lo, hi) = ((r * RANGE) as u32, (r * RANGE + range.len()) as u32);
+        for part in parts {
+            let from = part.partition_point(|&(l, _)| l < lo);
+            for &(l, a) in part[from..].iter().take_while(|&&(l, _)| l < hi) {
+                range[(l - lo) as usize] += a;
+            }
         }
-    }
-    peak
+    });
 }
 
 /// `values` as tape leaves numbered from `first`.
 fn leaves(values: &[f64], first: usize) -> Vec<Var> {
-    values.iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect()
+    values.par_iter().enumerate().map(|(n, &v)| Var::leaf((first + n) as u32, v)).collect()
 }
 
 /// `grid` with its values as tape leaves numbered from `first` (C order).
