@@ -72,6 +72,7 @@ struct Args {
 const SEED: u64 = 0;
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

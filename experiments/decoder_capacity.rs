@@ -66,6 +66,7 @@ struct Row {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

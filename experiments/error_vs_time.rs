@@ -74,6 +74,7 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

@@ -124,6 +124,7 @@ const LARGE_TRAIN_BUDGET: f64 = 300.0;
 const LARGE_REFINE_BUDGET: f64 = 120.0;
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

@@ -13,6 +13,7 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     let args = Args::parse();
     match dualphoton::io::figures::loss_curves(&args.dir.join("log.csv"), &args.dir.join("fig5_loss.svg")) {
         Ok(()) => {

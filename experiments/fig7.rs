@@ -29,6 +29,7 @@ fn run(args: &Args) -> Result<()> {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     match run(&Args::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

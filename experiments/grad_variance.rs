@@ -121,6 +121,7 @@ fn panels() -> impl Iterator<Item = (&'static str, &'static str)> {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

@@ -81,6 +81,7 @@ struct Manifest<'a> {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

@@ -90,6 +90,7 @@ struct ValidationRow {
 }
 
 fn main() -> std::process::ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Args::parse()))
 }
 

@@ -23,6 +23,7 @@ pub mod math;
 pub mod model;
 pub mod optim;
 pub mod prior;
+pub mod process;
 pub mod recon;
 pub mod render;
 pub mod rng;

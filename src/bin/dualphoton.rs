@@ -256,6 +256,7 @@ fn choose_prior(choice: Option<&str>, shape: [usize; 3]) -> Result<Option<Prior>
 }
 
 fn main() -> ExitCode {
+    dualphoton::process::keep_freed_memory();
     dualphoton::error::exit_code(run(Cli::parse().command))
 }
 
