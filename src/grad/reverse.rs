@@ -227,7 +227,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
             let first = first_depth + l * depth_nodes;
             let mut adjoint = total[first..first + depth_nodes].to_vec();
             light_depth.pad_adjoints(&mut adjoint);
-            let active: Vec<usize> = light_depth.nodes().iter().copied().filter(|&v| adjoint[v] != 0.0).collect();
+            let active: Vec<usize> = light_depth.nodes().filter(|&v| adjoint[v] != 0.0).collect();
             sweep(&active, voxels, &mut total, |scratch, v| {
                 light_depth
                     .adjoint(frozen.marcher(), density, l, v, adjoint[v], &mut |voxel, a| scratch.add(voxel as u32, a));

@@ -39,11 +39,9 @@ pub struct LightDepth {
     lo: Vec3,
     hi: Vec3,
     shape: [usize; 3],
-    /// The inner nodes that are marched: every node a camera-ray lookup
-    /// inside the occupied blocks can read, or a pad it reads depends on
-    /// (the others stay 0, never read).
-    nodes: Vec<usize>,
-    /// Per value of a depth grid: whether it is one of `nodes`.
+    /// Per value of a depth grid, whether it is an inner node that is
+    /// marched: every node a camera-ray lookup inside the occupied blocks can
+    /// read, or a pad it reads depends on (the others stay 0, never read).
     marched: Vec<bool>,
     /// The lights, scene order.
     lights: Vec<Light>,
@@ -77,13 +75,12 @@ impl LightDepth {
             });
         }
         let marched: Vec<bool> = (0..needed.len()).map(|v| needed[v] && !is_pad(shape, v)).collect();
-        let nodes = (0..needed.len()).filter(|&v| marched[v]).collect();
-        LightDepth { lo, hi, shape, nodes, marched, lights: lights.to_vec(), scale, seed }
+        LightDepth { lo, hi, shape, marched, lights: lights.to_vec(), scale, seed }
     }
 
     /// The nodes that carry a depth (flat indices into the depth grids).
-    pub fn nodes(&self) -> &[usize] {
-        &self.nodes
+    pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.marched.len()).filter(|&v| self.marched[v])
     }
 
     /// Number of values of one depth grid.
@@ -124,7 +121,7 @@ impl LightDepth {
                 if light.intensity <= 0.0 {
                     return None;
                 }
-                // Over the whole grid, not only the nodes: a grid of dual numbers is large, and
+                // Over the whole grid, not only the marched nodes: a grid of dual numbers is large, and
                 // filling it on one thread would be a serial part of every render.
                 let mut data: Vec<R> = (0..self.grid_len())
                     .into_par_iter()
@@ -268,7 +265,7 @@ mod tests {
         let marcher = Marcher::new(&density, majorant, 0.5 * density.voxel_size().min());
         let light = Light { position: Vec3::new(0.3, 2.5, -0.4), intensity: 1.0 };
         let depth = LightDepth::new(&marcher, &density, 2, std::slice::from_ref(&light), 3.0, 7);
-        let nodes = depth.nodes().to_vec();
+        let nodes: Vec<usize> = depth.nodes().collect();
         let plain = depth.depths(&marcher, &density);
         let leaves = Grid::new(
             density.lo,
