@@ -222,6 +222,9 @@ struct Row {
     /// Fraction of the truth's mass in voxels the estimate leaves at 0 (None in rows written before it was recorded).
     #[serde(default)]
     empty_truth_mass: Option<f64>,
+    /// Fraction of the estimate's mass in voxels where the truth is 0 (None in rows written before it was recorded).
+    #[serde(default)]
+    haze_mass: Option<f64>,
     wall_s: f64,
     updates: usize,
 }
@@ -253,6 +256,7 @@ impl Row {
             held_out_rel_rmse: held,
             blur_ceiling_r: m.blur_ceiling_r,
             empty_truth_mass: Some(m.empty_truth_mass),
+            haze_mass: Some(m.haze_mass),
             wall_s,
             updates,
         }
@@ -478,14 +482,15 @@ fn table_markdown(rows: &[Row]) -> String {
          Block measures are over 2x2x2 blocks at least half inside the visual hull; voxel measures over the hull \
          voxels (both over the default hull, whatever hull the fit ran in); the ceiling is r of the truth against \
          itself blurred by one voxel; fit hull: the voxels the fit ran in and the fraction of the truth's mass \
-         outside them; empty: the fraction of the truth's mass where the estimate is 0.\n\n\
-         | plume | group | method | fit hull (carved mass) | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | empty | held-out RMSE | wall s |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         outside them; empty: the fraction of the truth's mass where the estimate is 0; haze: the fraction of the \
+         estimate's mass where the truth is 0.\n\n\
+         | plume | group | method | fit hull (carved mass) | block r | block eps | block max err | r (ceiling) | eps | max err | mass err | empty | haze | held-out RMSE | wall s |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {} | {:.1} % | {:.0} |",
+            "| {} | {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {} | {} | {:.1} % | {:.0} |",
             r.plume,
             r.group,
             r.method,
@@ -503,6 +508,7 @@ fn table_markdown(rows: &[Row]) -> String {
             100.0 * r.max_error,
             100.0 * r.mass_error,
             r.empty_truth_mass.map_or("—".into(), |e| format!("{:.1} %", 100.0 * e)),
+            r.haze_mass.map_or("—".into(), |e| format!("{:.1} %", 100.0 * e)),
             100.0 * r.held_out_rel_rmse,
             r.wall_s
         );

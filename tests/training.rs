@@ -360,6 +360,36 @@ fn the_averaged_refinement_is_the_mean_of_its_last_iterates() {
 }
 
 #[test]
+fn the_refinement_steps_fall_to_lr_final() {
+    // With steps falling to 1e-6 of the first over two updates, the second
+    // update barely moves the density; at a constant step it moves it.
+    let paper = paper_problem(8, 3, 20_000, 0);
+    let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
+    let problem = Problem { scene: &paper.scene, targets, held_out, truth: None };
+    let model = initial_model(&paper.scene, targets, 0).unwrap();
+    let run = |updates: usize, lr_final: f64| {
+        let settings = RefineSettings {
+            updates,
+            lr_final,
+            photons: 5_000,
+            seed: 1,
+            additive: true,
+            global: true,
+            ..RefineSettings::default()
+        };
+        refine(&problem, &model, &settings, 0, &mut |_| {})
+    };
+    let one = run(1, 1.0).unwrap();
+    assert_eq!(one.data, run(1, 1e-6).unwrap().data, "the first update takes the full step");
+    let moved = |d: &Grid<f64>| d.data.iter().zip(&one.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let (constant, decayed) = (moved(&run(2, 1.0).unwrap()), moved(&run(2, 1e-6).unwrap()));
+    eprintln!("second update moves a voxel by at most {constant:.3e} (constant step), {decayed:.3e} (decayed)");
+    assert!(constant > 1e-5 && decayed < 1e-4 * constant, "{constant} {decayed}");
+    let err = run(2, 0.0).unwrap_err();
+    assert!(err.0.contains("lr_final"), "{}", err.0);
+}
+
+#[test]
 fn prior_eval_runs_every_method_at_smoke_size() {
     // A 16^3 prior from train_prior's smoke run, then one validation plume
     // through every method of the evaluation with a few updates each.

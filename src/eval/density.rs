@@ -36,6 +36,11 @@ pub struct DensityMetrics {
     /// leaves at exactly 0 (a decoder's ReLU output is 0 in whole regions;
     /// a refinement by factors alone cannot fill them).
     pub empty_truth_mass: f64,
+    /// Fraction of the estimate's mass over the hull in voxels where the
+    /// truth is exactly 0: a haze that noisy updates clipped at 0 leave
+    /// behind (the images then look too bright around the plume and too
+    /// dim at its core).
+    pub haze_mass: f64,
 }
 
 /// Measures `estimate` against `truth` (both cubic grids of one shape)
@@ -62,15 +67,19 @@ pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -
         block_max_error: rel(max(&in_blocks(&eb)), max(&in_blocks(&tb))),
         blur_ceiling_r: pearson(t, &blurred.data, mask),
         blurred_truth_max: max(&in_hull(&blurred.data)),
-        empty_truth_mass: {
-            let empty: f64 = eh.iter().zip(&th).filter(|(&e, _)| e == 0.0).map(|(_, &t)| t).sum();
-            let total = sum(&th);
-            if total > 0.0 {
-                empty / total
-            } else {
-                0.0
-            }
-        },
+        empty_truth_mass: share_where(&th, &eh),
+        haze_mass: share_where(&eh, &th),
+    }
+}
+
+/// The fraction of `of`'s sum held where `zero` is exactly 0 (0 if `of` sums to 0).
+fn share_where(of: &[f64], zero: &[f64]) -> f64 {
+    let total: f64 = of.iter().sum();
+    let held: f64 = of.iter().zip(zero).filter(|(_, &z)| z == 0.0).map(|(&v, _)| v).sum();
+    if total > 0.0 {
+        held / total
+    } else {
+        0.0
     }
 }
 
@@ -98,5 +107,9 @@ mod tests {
         e.data.iter_mut().step_by(2).for_each(|v| *v = 0.0);
         let missing: f64 = t.data.iter().step_by(2).sum::<f64>() / t.data.iter().sum::<f64>();
         assert!((density_metrics(&e, &t, &mask).empty_truth_mass - missing).abs() < 1e-12);
+        assert_eq!(density_metrics(&e, &t, &mask).haze_mass, 0.0);
+        // And the other way round: a haze where the truth is empty.
+        let m = density_metrics(&t, &e, &mask);
+        assert!((m.haze_mass - missing).abs() < 1e-12 && m.empty_truth_mass == 0.0, "{m:?}");
     }
 }

@@ -204,6 +204,12 @@ pub struct PaperFitArgs {
     /// of each update's render noise than the last one (0: the last update's density).
     #[arg(long, default_value_t = 0.0)]
     pub refine_average: f64,
+    /// The refinement's steps fall exponentially over its updates to this fraction (1: constant).
+    #[arg(long, default_value_t = 1.0)]
+    pub refine_lr_final: f64,
+    /// The refinement's additive terms' step, relative to --refine-lr times the mean non-zero decoded density.
+    #[arg(long, default_value_t = 1.0)]
+    pub refine_additive_lr: f64,
 }
 
 impl Default for PaperFitArgs {
@@ -227,6 +233,8 @@ impl Default for PaperFitArgs {
             refine_global: true,
             refine_additive: true,
             refine_average: 0.0,
+            refine_lr_final: 1.0,
+            refine_additive_lr: 1.0,
         }
     }
 }
@@ -270,6 +278,8 @@ pub fn paper_method(
         global: fit.refine_global,
         additive: fit.refine_additive,
         average: fit.refine_average,
+        lr_final: fit.refine_lr_final,
+        additive_lr: fit.refine_additive_lr,
         ..refinement(fit.refine, r)
     };
     Ok(s)

@@ -58,6 +58,16 @@ pub struct RefineSettings {
     /// less of that noise than any one of them. If a time budget stops the
     /// updates before the window opens, the last iterate.
     pub average: f64,
+    /// The steps of every factor and term fall exponentially over the
+    /// updates to this fraction of their start (1: constant). Adam moves a
+    /// coordinate whose gradient is only noise by a random walk of about
+    /// its step per update; the additive terms are clipped at 0, so that
+    /// walk leaves a positive haze in voxels the truth leaves empty, in
+    /// proportion to the last steps.
+    pub lr_final: f64,
+    /// The additive terms' step, as a multiple of `lr` times the mean
+    /// non-zero decoded density.
+    pub additive_lr: f64,
 }
 
 impl Default for RefineSettings {
@@ -74,6 +84,8 @@ impl Default for RefineSettings {
             global: false,
             additive: false,
             average: 0.0,
+            lr_final: 1.0,
+            additive_lr: 1.0,
         }
     }
 }
@@ -104,6 +116,12 @@ pub fn refine_density(
     if !(settings.lr.is_finite() && settings.lr > 0.0 && settings.penalty.is_finite() && settings.penalty >= 0.0) {
         return Err(Error(format!("refine: lr {} must be > 0 and penalty {} >= 0", settings.lr, settings.penalty)));
     }
+    if !(settings.lr_final.is_finite() && settings.lr_final > 0.0 && settings.additive_lr.is_finite() && settings.additive_lr > 0.0) {
+        return Err(Error(format!(
+            "refine: lr_final {} and additive_lr {} must be finite and > 0",
+            settings.lr_final, settings.additive_lr
+        )));
+    }
     if !(0.0..=1.0).contains(&settings.average) {
         return Err(Error(format!("refine: the averaged fraction {} must be within [0, 1]", settings.average)));
     }
@@ -123,7 +141,8 @@ pub fn refine_density(
     let mean_nonzero = nonzero.iter().sum::<f64>() / nonzero.len().max(1) as f64;
     let (mut s, mut a, mut g) = (vec![0.0; hull.len()], vec![0.0; hull.len()], [0.0]);
     let mut adam = Adam::new(hull.len(), settings.lr);
-    let mut adam_a = Adam::new(hull.len(), settings.lr * mean_nonzero);
+    let lr_a = settings.lr * settings.additive_lr * mean_nonzero;
+    let mut adam_a = Adam::new(hull.len(), lr_a);
     let mut adam_g = Adam::new(1, settings.lr);
     let density_of = |s: &[f64], a: &[f64], g: f64| {
         let mut d = base.clone();
@@ -136,6 +155,8 @@ pub fn refine_density(
         if settings.time_budget.is_some_and(|b| start.elapsed().as_secs_f64() >= b) {
             break;
         }
+        let decay = settings.lr_final.powf(u as f64 / (settings.updates - 1).max(1) as f64);
+        (adam.lr, adam_a.lr, adam_g.lr) = (settings.lr * decay, lr_a * decay, settings.lr * decay);
         let density = density_of(&s, &a, g[0]);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
