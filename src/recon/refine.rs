@@ -116,7 +116,11 @@ pub fn refine_density(
     if !(settings.lr.is_finite() && settings.lr > 0.0 && settings.penalty.is_finite() && settings.penalty >= 0.0) {
         return Err(Error(format!("refine: lr {} must be > 0 and penalty {} >= 0", settings.lr, settings.penalty)));
     }
-    if !(settings.lr_final.is_finite() && settings.lr_final > 0.0 && settings.additive_lr.is_finite() && settings.additive_lr > 0.0) {
+    if !(settings.lr_final.is_finite()
+        && settings.lr_final > 0.0
+        && settings.additive_lr.is_finite()
+        && settings.additive_lr > 0.0)
+    {
         return Err(Error(format!(
             "refine: lr_final {} and additive_lr {} must be finite and > 0",
             settings.lr_final, settings.additive_lr
