@@ -37,9 +37,8 @@ pub struct DensityMetrics {
     /// a refinement by factors alone cannot fill them).
     pub empty_truth_mass: f64,
     /// Fraction of the estimate's mass over the hull in voxels where the
-    /// truth is exactly 0: a haze that noisy updates clipped at 0 leave
-    /// behind (the images then look too bright around the plume and too
-    /// dim at its core).
+    /// truth is exactly 0: a haze the training views cannot rule out (the
+    /// images then look too bright around the plume and too dim at its core).
     pub haze_mass: f64,
 }
 

@@ -61,9 +61,9 @@ pub struct RefineSettings {
     /// The steps of every factor and term fall exponentially over the
     /// updates to this fraction of their start (1: constant). Adam moves a
     /// coordinate whose gradient is only noise by a random walk of about
-    /// its step per update; the additive terms are clipped at 0, so that
-    /// walk leaves a positive haze in voxels the truth leaves empty, in
-    /// proportion to the last steps.
+    /// its step per update, and the additive terms are clipped at 0; but
+    /// smaller late steps did not lessen the haze in empty voxels
+    /// (README, "Where the rest of the misfit sits"), so the default is 1.
     pub lr_final: f64,
     /// The additive terms' step, as a multiple of `lr` times the mean
     /// non-zero decoded density.
