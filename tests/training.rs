@@ -324,69 +324,73 @@ fn the_additive_term_fills_voxels_the_decoder_leaves_empty() {
     assert!(refined.data.iter().all(|v| v.is_finite() && *v >= 0.0));
 }
 
-#[test]
-fn refining_a_given_density_is_refining_the_model_that_decodes_it() {
+/// Runs `f` on the 8^3 paper problem (its training cameras) and the initial model.
+fn on_small_problem(f: impl FnOnce(&Problem, &Model)) {
     let paper = paper_problem(8, 3, 20_000, 0);
     let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
     let problem = Problem { scene: &paper.scene, targets, held_out, truth: None };
     let model = initial_model(&paper.scene, targets, 0).unwrap();
-    let settings = RefineSettings { updates: 2, photons: 5_000, seed: 1, additive: true, ..RefineSettings::default() };
-    let base = model.density(&paper.scene.density);
-    let from_model = refine(&problem, &model, &settings, 3, &mut |_| {}).unwrap();
-    let from_density = refine_density(&problem, &base, &model.mask, &settings, 3, &mut |_| {}).unwrap();
-    assert_eq!(from_model.data, from_density.data);
-    let err = refine_density(&problem, &base, &model.mask[1..], &settings, 3, &mut |_| {}).unwrap_err();
-    assert!(err.0.contains("must match the scene's grid"), "{}", err.0);
+    f(&problem, &model)
+}
+
+#[test]
+fn refining_a_given_density_is_refining_the_model_that_decodes_it() {
+    on_small_problem(|problem, model| {
+        let settings =
+            RefineSettings { updates: 2, photons: 5_000, seed: 1, additive: true, ..RefineSettings::default() };
+        let base = model.density(&problem.scene.density);
+        let from_model = refine(problem, model, &settings, 3, &mut |_| {}).unwrap();
+        let from_density = refine_density(problem, &base, &model.mask, &settings, 3, &mut |_| {}).unwrap();
+        assert_eq!(from_model.data, from_density.data);
+        let err = refine_density(problem, &base, &model.mask[1..], &settings, 3, &mut |_| {}).unwrap_err();
+        assert!(err.0.contains("must match the scene's grid"), "{}", err.0);
+    });
 }
 
 #[test]
 fn the_averaged_refinement_is_the_mean_of_its_last_iterates() {
-    let paper = paper_problem(8, 3, 20_000, 0);
-    let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
-    let problem = Problem { scene: &paper.scene, targets, held_out, truth: None };
-    let model = initial_model(&paper.scene, targets, 0).unwrap();
-    let run = |updates: usize, average: f64| {
-        let settings = RefineSettings { updates, average, photons: 5_000, seed: 1, ..RefineSettings::default() };
-        refine(&problem, &model, &settings, 0, &mut |_| {})
-    };
-    let (third, fourth) = (run(3, 0.0).unwrap(), run(4, 0.0).unwrap());
-    let averaged = run(4, 0.5).unwrap();
-    for ((a, b), m) in third.data.iter().zip(&fourth.data).zip(&averaged.data) {
-        assert!((0.5 * (a + b) - m).abs() <= 1e-12 * m.abs().max(1e-12), "{a} {b} {m}");
-    }
-    assert_ne!(third.data, fourth.data, "the test needs iterates that differ");
-    let err = run(4, 1.5).unwrap_err();
-    assert!(err.0.contains("averaged fraction"), "{}", err.0);
+    on_small_problem(|problem, model| {
+        let run = |updates: usize, average: f64| {
+            let settings = RefineSettings { updates, average, photons: 5_000, seed: 1, ..RefineSettings::default() };
+            refine(problem, model, &settings, 0, &mut |_| {})
+        };
+        let (third, fourth) = (run(3, 0.0).unwrap(), run(4, 0.0).unwrap());
+        let averaged = run(4, 0.5).unwrap();
+        for ((a, b), m) in third.data.iter().zip(&fourth.data).zip(&averaged.data) {
+            assert!((0.5 * (a + b) - m).abs() <= 1e-12 * m.abs().max(1e-12), "{a} {b} {m}");
+        }
+        assert_ne!(third.data, fourth.data, "the test needs iterates that differ");
+        let err = run(4, 1.5).unwrap_err();
+        assert!(err.0.contains("averaged fraction"), "{}", err.0);
+    });
 }
 
 #[test]
 fn the_refinement_steps_fall_to_lr_final() {
     // With steps falling to 1e-6 of the first over two updates, the second
     // update barely moves the density; at a constant step it moves it.
-    let paper = paper_problem(8, 3, 20_000, 0);
-    let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
-    let problem = Problem { scene: &paper.scene, targets, held_out, truth: None };
-    let model = initial_model(&paper.scene, targets, 0).unwrap();
-    let run = |updates: usize, lr_final: f64| {
-        let settings = RefineSettings {
-            updates,
-            lr_final,
-            photons: 5_000,
-            seed: 1,
-            additive: true,
-            global: true,
-            ..RefineSettings::default()
+    on_small_problem(|problem, model| {
+        let run = |updates: usize, lr_final: f64| {
+            let settings = RefineSettings {
+                updates,
+                lr_final,
+                photons: 5_000,
+                seed: 1,
+                additive: true,
+                global: true,
+                ..RefineSettings::default()
+            };
+            refine(problem, model, &settings, 0, &mut |_| {})
         };
-        refine(&problem, &model, &settings, 0, &mut |_| {})
-    };
-    let one = run(1, 1.0).unwrap();
-    assert_eq!(one.data, run(1, 1e-6).unwrap().data, "the first update takes the full step");
-    let moved = |d: &Grid<f64>| d.data.iter().zip(&one.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-    let (constant, decayed) = (moved(&run(2, 1.0).unwrap()), moved(&run(2, 1e-6).unwrap()));
-    eprintln!("second update moves a voxel by at most {constant:.3e} (constant step), {decayed:.3e} (decayed)");
-    assert!(constant > 1e-5 && decayed < 1e-4 * constant, "{constant} {decayed}");
-    let err = run(2, 0.0).unwrap_err();
-    assert!(err.0.contains("lr_final"), "{}", err.0);
+        let one = run(1, 1.0).unwrap();
+        assert_eq!(one.data, run(1, 1e-6).unwrap().data, "the first update takes the full step");
+        let moved = |d: &Grid<f64>| d.data.iter().zip(&one.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let (constant, decayed) = (moved(&run(2, 1.0).unwrap()), moved(&run(2, 1e-6).unwrap()));
+        eprintln!("second update moves a voxel by at most {constant:.3e} (constant step), {decayed:.3e} (decayed)");
+        assert!(constant > 1e-5 && decayed < 1e-4 * constant, "{constant} {decayed}");
+        let err = run(2, 0.0).unwrap_err();
+        assert!(err.0.contains("lr_final"), "{}", err.0);
+    });
 }
 
 #[test]
