@@ -324,6 +324,38 @@ fn the_additive_term_fills_voxels_the_decoder_leaves_empty() {
     assert!(refined.data.iter().all(|v| v.is_finite() && *v >= 0.0));
 }
 
+#[test]
+fn block_factors_correct_a_coarse_misfit_faster() {
+    // Targets rendered from the model's own density times 1.6 in the half
+    // x >= 0 of the grid: a block's factor sums its voxels' gradients, so
+    // with blocks of 4^3 that half's mass must rise further in a few updates
+    // than with the per-voxel factors alone, and the other half stay near.
+    let paper = paper_problem(8, 3, 20_000, 0);
+    let model = initial_model(&paper.scene, &paper.images[..HELD_OUT_CAMERA], 0).unwrap();
+    let base = model.density(&paper.scene.density);
+    let right = |i: usize| i % 8 >= 4;
+    let mut scene = paper.scene.clone();
+    scene.density = base.clone();
+    scene.density.data.iter_mut().enumerate().filter(|(i, _)| right(*i)).for_each(|(_, v)| *v *= 1.6);
+    let images = render_photon(&scene).images;
+    let (targets, held_out) = images.split_at(HELD_OUT_CAMERA);
+    let problem = Problem { scene: &scene, targets, held_out, truth: None };
+    let half_mass =
+        |d: &Grid<f64>, r: bool| d.data.iter().enumerate().filter(|(i, _)| right(*i) == r).map(|(_, v)| v).sum::<f64>();
+    let ratios = |blocks: Vec<usize>| {
+        let settings = RefineSettings { updates: 10, photons: 5_000, seed: 1, blocks, ..RefineSettings::default() };
+        let refined = refine(&problem, &model, &settings, 0, &mut |_| {}).unwrap();
+        (half_mass(&refined, true) / half_mass(&base, true), half_mass(&refined, false) / half_mass(&base, false))
+    };
+    let ((voxels, voxels_left), (blocks, blocks_left)) = (ratios(vec![]), ratios(vec![4]));
+    eprintln!("x >= 0 half after 10 updates, target 1.6: voxels {voxels:.3}, with 4^3 blocks {blocks:.3}; other half {voxels_left:.3} / {blocks_left:.3}");
+    assert!(blocks > voxels + 0.05 && blocks < 1.8, "voxels {voxels:.3}, blocks {blocks:.3}");
+    assert!((blocks_left - 1.0).abs() < (blocks - 1.0).abs(), "{blocks_left:.3} vs {blocks:.3}");
+    let bad = RefineSettings { updates: 1, blocks: vec![1], ..RefineSettings::default() };
+    let err = refine(&problem, &model, &bad, 0, &mut |_| {}).unwrap_err();
+    assert!(err.0.contains("block edges"), "{}", err.0);
+}
+
 /// Runs `f` on the 8^3 paper problem (its training cameras) and the initial model.
 fn on_small_problem(f: impl FnOnce(&Problem, &Model)) {
     let paper = paper_problem(8, 3, 20_000, 0);

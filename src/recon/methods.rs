@@ -46,6 +46,9 @@ pub struct PriorFitArgs {
     /// (see --refine-average; 0: the last update's).
     #[arg(long, default_value_t = 0.0)]
     pub prior_refine_average: f64,
+    /// With a prior: the refinement's block edges (see --refine-blocks; none by default).
+    #[arg(long, value_delimiter = ',')]
+    pub prior_refine_blocks: Vec<usize>,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).
     #[arg(long, value_enum, default_value = "fwd-full")]
     pub prior_estimator: Estimator,
@@ -62,6 +65,7 @@ impl Default for PriorFitArgs {
             prior_refine_global: true,
             prior_refine_additive: true,
             prior_refine_average: 0.0,
+            prior_refine_blocks: vec![],
             prior_estimator: Estimator::FwdFull,
         }
     }
@@ -210,6 +214,10 @@ pub struct PaperFitArgs {
     /// The refinement's additive terms' step, relative to --refine-lr times the mean non-zero decoded density.
     #[arg(long, default_value_t = 1.0)]
     pub refine_additive_lr: f64,
+    /// The refinement also fits one factor (and additive term) per block of B^3 voxels for every B given
+    /// (e.g. `4,8`): a block's gradient sums its voxels', so it corrects the coarse misfit sooner.
+    #[arg(long, value_delimiter = ',')]
+    pub refine_blocks: Vec<usize>,
 }
 
 impl Default for PaperFitArgs {
@@ -235,6 +243,7 @@ impl Default for PaperFitArgs {
             refine_average: 0.0,
             refine_lr_final: 1.0,
             refine_additive_lr: 1.0,
+            refine_blocks: vec![],
         }
     }
 }
@@ -280,6 +289,7 @@ pub fn paper_method(
         average: fit.refine_average,
         lr_final: fit.refine_lr_final,
         additive_lr: fit.refine_additive_lr,
+        blocks: fit.refine_blocks.clone(),
         ..refinement(fit.refine, r)
     };
     Ok(s)
@@ -335,6 +345,7 @@ pub fn prior_method(
         global: fit.prior_refine_global,
         additive: fit.prior_refine_additive,
         average: fit.prior_refine_average,
+        blocks: fit.prior_refine_blocks.clone(),
         ..refinement(fit.prior_refine, r)
     };
     s.prior = Some(prior);

@@ -68,6 +68,11 @@ pub struct RefineSettings {
     /// The additive terms' step, as a multiple of `lr` times the mean
     /// non-zero decoded density.
     pub additive_lr: f64,
+    /// Also fit one log-factor (and, with `additive`, one additive term)
+    /// per block of `b`^3 voxels for every edge `b` here (empty: none). A
+    /// block's gradient sums its voxels', so it follows the images' coarse
+    /// misfit far sooner than the voxels' own noisy factors do.
+    pub blocks: Vec<usize>,
 }
 
 impl Default for RefineSettings {
@@ -86,6 +91,7 @@ impl Default for RefineSettings {
             average: 0.0,
             lr_final: 1.0,
             additive_lr: 1.0,
+            blocks: vec![],
         }
     }
 }
@@ -137,21 +143,32 @@ pub fn refine_density(
             problem.scene.density.shape
         )));
     }
+    if settings.blocks.iter().any(|&b| b < 2) {
+        return Err(Error(format!("refine: block edges {:?} must be at least 2 voxels", settings.blocks)));
+    }
     let start = Instant::now();
     let level = Level::full(problem, mask);
     let hull: Vec<usize> =
         (0..base.data.len()).filter(|&i| mask[i] && (settings.additive || base.data[i] > 0.0)).collect();
     let nonzero: Vec<f64> = hull.iter().map(|&i| base.data[i]).filter(|&v| v > 0.0).collect();
     let mean_nonzero = nonzero.iter().sum::<f64>() / nonzero.len().max(1) as f64;
-    let (mut s, mut a, mut g) = (vec![0.0; hull.len()], vec![0.0; hull.len()], [0.0]);
-    let mut adam = Adam::new(hull.len(), settings.lr);
     let lr_a = settings.lr * settings.additive_lr * mean_nonzero;
-    let mut adam_a = Adam::new(hull.len(), lr_a);
-    let mut adam_g = Adam::new(1, settings.lr);
-    let density_of = |s: &[f64], a: &[f64], g: f64| {
+    // Field 0 is the voxels' own terms, then one field per block edge.
+    let mut fields = vec![Field::new((0..hull.len()).collect(), settings.lr, lr_a)];
+    fields.extend(settings.blocks.iter().map(|&b| Field::new(block_of(base.shape, &hull, b), settings.lr, lr_a)));
+    let (mut g, mut adam_g) = ([0.0], Adam::new(1, settings.lr));
+    let density_of = |fields: &[Field], g: f64| {
         let mut d = base.clone();
-        hull.iter().zip(s.iter().zip(a)).for_each(|(&i, (&si, &ai))| d.data[i] = d.data[i] * (g + si).exp() + ai);
-        d
+        let mut additive = vec![0.0; hull.len()];
+        let mut log = vec![g; hull.len()];
+        for f in fields {
+            for (j, &k) in f.of.iter().enumerate() {
+                log[j] += f.s[k];
+                additive[j] += f.a[k];
+            }
+        }
+        hull.iter().enumerate().for_each(|(j, &i)| d.data[i] = d.data[i] * log[j].exp() + additive[j]);
+        (d, additive)
     };
     let window = (settings.average * settings.updates as f64).round() as usize;
     let (mut sum, mut summed) = (vec![0.0; base.data.len()], 0usize);
@@ -160,8 +177,9 @@ pub fn refine_density(
             break;
         }
         let decay = settings.lr_final.powf(u as f64 / (settings.updates - 1).max(1) as f64);
-        (adam.lr, adam_a.lr, adam_g.lr) = (settings.lr * decay, lr_a * decay, settings.lr * decay);
-        let density = density_of(&s, &a, g[0]);
+        adam_g.lr = settings.lr * decay;
+        fields.iter_mut().for_each(|f| (f.adam_s.lr, f.adam_a.lr) = (settings.lr * decay, lr_a * decay));
+        let (density, additive) = density_of(&fields, g[0]);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
         let frozen = Frozen::new(&scene, Some(&level.support));
@@ -174,29 +192,98 @@ pub fn refine_density(
             reverse_gradient(&frozen, &level.targets, Subset::full()).grad
         };
         let n = hull.len().max(1) as f64;
-        // d density / d s = d density / d g = the multiplicative part, density - a.
-        let image_part: Vec<f64> = hull.iter().zip(&a).map(|(&i, ai)| grad[i] * (density.data[i] - ai)).collect();
+        // d density / d (any log-factor) = the multiplicative part, density - additive.
+        let image_part: Vec<f64> =
+            hull.iter().zip(&additive).map(|(&i, add)| grad[i] * (density.data[i] - add)).collect();
+        let voxel_grad: Vec<f64> = hull.iter().map(|&i| grad[i]).collect();
         if settings.global {
             adam_g.step(&mut g, &[image_part.iter().sum::<f64>()]);
         }
-        if settings.additive {
-            let ga: Vec<f64> = hull.iter().map(|&i| grad[i]).collect();
-            adam_a.step(&mut a, &ga);
-            a.iter_mut().for_each(|ai| *ai = ai.max(0.0));
+        for (index, f) in fields.iter_mut().enumerate() {
+            if settings.additive {
+                let ga = f.sum_over(&voxel_grad);
+                f.adam_a.step(&mut f.a, &ga);
+                f.a.iter_mut().for_each(|a| *a = a.max(0.0));
+            }
+            let mut gs = f.sum_over(&image_part);
+            if index == 0 {
+                // The penalty holds the voxels' own factors near the decoder's density.
+                gs.iter_mut().zip(&f.s).for_each(|(gi, si)| *gi += 2.0 * settings.penalty * si / n);
+            }
+            f.adam_s.step(&mut f.s, &gs);
         }
-        let gs: Vec<f64> = image_part.iter().zip(&s).map(|(gi, si)| gi + 2.0 * settings.penalty * si / n).collect();
-        adam.step(&mut s, &gs);
         if u + window >= settings.updates {
-            sum.iter_mut().zip(&density_of(&s, &a, g[0]).data).for_each(|(t, d)| *t += d);
+            sum.iter_mut().zip(&density_of(&fields, g[0]).0.data).for_each(|(t, d)| *t += d);
             summed += 1;
         }
     }
-    let mut last = density_of(&s, &a, g[0]);
+    let mut last = density_of(&fields, g[0]).0;
     if summed > 0 {
         last.data.iter_mut().zip(&sum).for_each(|(d, t)| *d = t / summed as f64);
     }
     Ok(last)
 }
 
+/// One field of refinement terms: a log-factor `s` and an additive term `a`
+/// per cell, with `of[j]` the cell of hull voxel `j` (its own, or its block's).
+struct Field {
+    of: Vec<usize>,
+    s: Vec<f64>,
+    a: Vec<f64>,
+    adam_s: Adam,
+    adam_a: Adam,
+}
+
+impl Field {
+    fn new(of: Vec<usize>, lr: f64, lr_a: f64) -> Self {
+        let cells = of.iter().max().map_or(0, |&k| k + 1);
+        Field {
+            of,
+            s: vec![0.0; cells],
+            a: vec![0.0; cells],
+            adam_s: Adam::new(cells, lr),
+            adam_a: Adam::new(cells, lr_a),
+        }
+    }
+
+    /// Per cell, the sum of `per_voxel` over its hull voxels.
+    fn sum_over(&self, per_voxel: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.s.len()];
+        self.of.iter().zip(per_voxel).for_each(|(&k, v)| out[k] += v);
+        out
+    }
+}
+
+/// For every voxel of `hull` (indices into a grid of `shape`), its block of
+/// `edge`^3 voxels, numbered densely over the blocks the hull touches.
+fn block_of(shape: [usize; 3], hull: &[usize], edge: usize) -> Vec<usize> {
+    let per_axis = shape.map(|n| n.div_ceil(edge));
+    let mut dense = std::collections::HashMap::new();
+    hull.iter()
+        .map(|&i| {
+            let (k, j, x) = (i / (shape[1] * shape[2]), (i / shape[2]) % shape[1], i % shape[2]);
+            let block = ((k / edge) * per_axis[1] + j / edge) * per_axis[2] + x / edge;
+            let next = dense.len();
+            *dense.entry(block).or_insert(next)
+        })
+        .collect()
+}
+
 /// Sets the refinement's render seeds apart from training's.
 const REFINE_SEED: u64 = 0x0EF1_4E00_0000_0000;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_are_numbered_densely_over_the_hull() {
+        // A 4^3 grid in blocks of 2: the hull's first voxel opens block 0,
+        // voxels of one block share its number, and a block the hull misses
+        // gets none.
+        let hull = [0, 1, 5, 2, 63, 21];
+        assert_eq!(block_of([4, 4, 4], &hull, 2), vec![0, 0, 0, 1, 2, 0]);
+        // A grid edge that the block edge does not divide: the last block is partial.
+        assert_eq!(block_of([1, 1, 5], &[0, 3, 4], 4), vec![0, 0, 1]);
+    }
+}
