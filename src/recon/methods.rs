@@ -46,8 +46,9 @@ pub struct PriorFitArgs {
     /// (see --refine-average; 0: the last update's).
     #[arg(long, default_value_t = 0.0)]
     pub prior_refine_average: f64,
-    /// With a prior: the refinement's block edges (see --refine-blocks; none by default).
-    #[arg(long, value_delimiter = ',')]
+    /// With a prior: the refinement's block edges (see --refine-blocks). 4 and 8 help on every plume
+    /// measured, most outside the training set (README, "Block terms"); `--prior-refine-blocks 0`: none.
+    #[arg(long, value_delimiter = ',', default_values_t = [4, 8])]
     pub prior_refine_blocks: Vec<usize>,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).
     #[arg(long, value_enum, default_value = "fwd-full")]
@@ -65,7 +66,7 @@ impl Default for PriorFitArgs {
             prior_refine_global: true,
             prior_refine_additive: true,
             prior_refine_average: 0.0,
-            prior_refine_blocks: vec![],
+            prior_refine_blocks: vec![4, 8],
             prior_estimator: Estimator::FwdFull,
         }
     }
@@ -215,7 +216,7 @@ pub struct PaperFitArgs {
     #[arg(long, default_value_t = 1.0)]
     pub refine_additive_lr: f64,
     /// The refinement also fits one factor (and additive term) per block of B^3 voxels for every B given
-    /// (e.g. `4,8`): a block's gradient sums its voxels', so it corrects the coarse misfit sooner.
+    /// (e.g. `4,8`): a block's gradient sums its voxels', so it corrects the coarse misfit sooner (0: none).
     #[arg(long, value_delimiter = ',')]
     pub refine_blocks: Vec<usize>,
 }
@@ -289,10 +290,15 @@ pub fn paper_method(
         average: fit.refine_average,
         lr_final: fit.refine_lr_final,
         additive_lr: fit.refine_additive_lr,
-        blocks: fit.refine_blocks.clone(),
+        blocks: block_edges(&fit.refine_blocks),
         ..refinement(fit.refine, r)
     };
     Ok(s)
+}
+
+/// Block edges from the command line, where an edge of 0 asks for none.
+fn block_edges(edges: &[usize]) -> Vec<usize> {
+    edges.iter().copied().filter(|&b| b != 0).collect()
 }
 
 /// The default training, rendering with `r`.
@@ -345,7 +351,7 @@ pub fn prior_method(
         global: fit.prior_refine_global,
         additive: fit.prior_refine_additive,
         average: fit.prior_refine_average,
-        blocks: fit.prior_refine_blocks.clone(),
+        blocks: block_edges(&fit.prior_refine_blocks),
         ..refinement(fit.prior_refine, r)
     };
     s.prior = Some(prior);
@@ -377,6 +383,13 @@ mod tests {
         assert_eq!(cli.prior, PriorFitArgs::default());
         assert_eq!(cli.renders, UpdateRenders::default());
         assert_eq!(cli.tune, PriorTuneArgs::default());
+    }
+
+    #[test]
+    fn a_block_edge_of_zero_asks_for_no_block_terms() {
+        let cli = Cli::parse_from(["test", "--prior-refine-blocks", "0", "--refine-blocks", "2,0"]);
+        assert_eq!(block_edges(&cli.prior.prior_refine_blocks), Vec::<usize>::new());
+        assert_eq!(block_edges(&cli.paper.refine_blocks), vec![2]);
     }
 
     #[test]
