@@ -1,9 +1,10 @@
 //! Error against run time.
 //!
-//! 1. Reconstruction: the main job's training, the same wall-clock budget
-//!    for every estimator (coarse to fine by time: the first 80 % of the
-//!    budget at half resolution), density error epsilon and held-out camera
-//!    error logged against wall time, plus a final high-quality evaluation.
+//! 1. Reconstruction: the main job's fitting of the paper's method, the same
+//!    wall-clock budgets for every estimator (training coarse to fine by
+//!    time, the first 80 % of its budget at half resolution, then the
+//!    per-voxel refinement), density error epsilon and held-out camera error
+//!    logged against wall time, plus a final high-quality evaluation.
 //! 2. Renderer: photon mapping's error against the path-traced reference
 //!    over photon counts and kernel radii, next to the path tracer itself at
 //!    low sample counts (equal-time comparison).
@@ -20,12 +21,10 @@ use dualphoton::grad::Estimator;
 use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::write_rows;
-use dualphoton::recon::estimator::EstimatorSettings;
+use dualphoton::recon::methods::{paper_method, PaperFitArgs, UpdateRenders};
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
-use dualphoton::recon::reconstruct::initial_model;
-use dualphoton::recon::train::{train, LogRow, TrainSettings};
+use dualphoton::recon::reconstruct::reconstruct;
 use dualphoton::render::path::{render_path, PathOptions};
-use dualphoton::render::render_photon;
 use dualphoton::scene::rig;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -38,9 +37,12 @@ struct Args {
     /// Grid resolution (res^3) and image size (res x res).
     #[arg(long, default_value_t = 64)]
     res: usize,
-    /// Wall-clock budget of each training run, seconds.
+    /// Wall-clock budget of each estimator's training, seconds.
     #[arg(long, default_value_t = 200.0)]
     budget: f64,
+    /// Wall-clock budget of the per-voxel refinement after training, seconds (0: none).
+    #[arg(long, default_value_t = 100.0)]
+    refine_budget: f64,
     /// Estimators to train with.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "fwd-full,fwd-rand,rev-sub,rev-full")]
     estimators: Vec<Estimator>,
@@ -82,6 +84,7 @@ fn run(mut args: Args) -> Result<()> {
     if args.smoke {
         args.res = 16;
         args.budget = 3.0;
+        args.refine_budget = 2.0;
         args.photons = vec![5_000, 20_000];
         args.radii = vec![1.0];
         args.path_spp = vec![4, 16];
@@ -91,6 +94,9 @@ fn run(mut args: Args) -> Result<()> {
     }
     if !(args.budget > 0.0 && args.budget.is_finite()) {
         return Err(Error(format!("--budget: {} is not a positive number of seconds", args.budget)));
+    }
+    if !(args.refine_budget >= 0.0 && args.refine_budget.is_finite()) {
+        return Err(Error(format!("--refine-budget: {} is not a number of seconds >= 0", args.refine_budget)));
     }
     let estimators = args.estimators.clone();
     std::fs::create_dir_all(&args.out)?;
@@ -109,7 +115,11 @@ fn run(mut args: Args) -> Result<()> {
     Ok(())
 }
 
-/// Part 1: every estimator trains for the same wall-clock budget.
+/// Caps the updates of a run that its time budgets stop.
+const UPDATE_CAP: usize = 1_000_000;
+
+/// Part 1: every estimator fits with the main job's settings under the same
+/// wall-clock budgets (training, then the refinement, which is reverse mode for all).
 fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -> Result<()> {
     let target_photons = if args.smoke { 20_000 } else { 1_000_000 };
     eprintln!("rendering the targets ...");
@@ -117,45 +127,51 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
     let (targets, held_out) = images.split_at(rig::HELD_OUT_CAMERA);
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
 
-    let mut log = String::from("estimator,iteration,wall_s,train_loss,held_out_rel_rmse,density_rel_l1\n");
-    let mut finals = String::from("estimator,updates,seconds,density_rel_l1,pearson_r,held_out_rel_rmse\n");
+    let mut log = String::from("estimator,iteration,phase,wall_s,train_loss,held_out_rel_rmse,density_rel_l1\n");
+    let mut finals = String::from("estimator,updates,refine_updates,seconds,density_rel_l1,pearson_r,held_out_rel_rmse\n");
     let (mut eps_series, mut held_series) = (vec![], vec![]);
     let _ = writeln!(
         summary,
-        "## Reconstruction under a {:.0} s budget per estimator\n\n\
-         Same problem, seed and initial model as the main job; training stops when the budget is spent (the first \
-         80 % of it at half resolution). The per-update held-out error comes from that update's own quick render \
-         (50,000 photons, 2 spp, half resolution in the coarse phase), so it carries render noise; the final columns \
-         re-render the last estimate with {target_photons} photons at 8 spp.\n\n\
-         | estimator | updates | final epsilon | final Pearson r | final held-out rel. RMSE |\n|---|---|---|---|---|",
-        args.budget
+        "## Reconstruction under a {:.0} s + {:.0} s budget per estimator\n\n\
+         The main job's problem, seed, initial model and fitting (`experiment_table1 --prior none`), each estimator \
+         training for {:.0} s (the first 80 % of it at half resolution), then the same per-voxel refinement (reverse \
+         mode, whatever the estimator) for {:.0} s. The per-update held-out error comes from that update's own quick \
+         render (50,000 photons, 2 spp, half resolution in the coarse phase), so it carries render noise; the final \
+         columns re-render the estimate with {target_photons} photons at 8 spp.\n\n\
+         | estimator | training updates | refinement updates | final epsilon | final Pearson r | final held-out rel. RMSE |\n\
+         |---|---|---|---|---|---|",
+        args.budget, args.refine_budget, args.budget, args.refine_budget
     );
     for &estimator in estimators {
-        let mut model = initial_model(&scene, targets, args.seed)?;
-        let settings = TrainSettings {
-            iterations: usize::MAX,
-            gradient: EstimatorSettings { estimator, ..Default::default() },
-            seed: args.seed,
+        // The budgets stop both parts; the update counts are only caps.
+        let fit = PaperFitArgs {
+            estimator,
+            iterations: UPDATE_CAP,
             time_budget: Some(args.budget),
-            ..Default::default()
+            refine: if args.refine_budget > 0.0 { UPDATE_CAP } else { 0 },
+            refine_budget: Some(args.refine_budget),
+            ..PaperFitArgs::default()
         };
-        let mut rows: Vec<LogRow> = vec![];
-        train(&problem, &mut model, &settings, &mut |row, _, _| {
+        let renders = UpdateRenders { seed: args.seed, ..UpdateRenders::default() };
+        let settings = paper_method(&fit, renders, target_photons, 8)?;
+        let result = reconstruct(&problem, &settings, &mut |p| {
             eprint!(
                 "\r{}: update {}  {:.0}/{:.0} s  eps {:.3}   ",
                 estimator.name(),
-                row.iteration + 1,
-                row.wall_s,
-                args.budget,
-                row.density_rel_l1
+                p.row.iteration + 1,
+                p.row.wall_s,
+                args.budget + args.refine_budget,
+                p.row.density_rel_l1
             );
-            rows.push(row.clone());
         })?;
         eprintln!();
-        for r in &rows {
+        let rows = &result.log;
+        let (trained, refined) = (result.trained, rows.len() - result.trained);
+        for (i, r) in rows.iter().enumerate() {
+            let phase = if i < trained { "train" } else { "refine" };
             let _ = writeln!(
                 log,
-                "{},{},{:.3},{:.6e},{:.6},{:.6}",
+                "{},{},{phase},{:.3},{:.6e},{:.6},{:.6}",
                 estimator.name(),
                 r.iteration,
                 r.wall_s,
@@ -164,24 +180,20 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
                 r.density_rel_l1
             );
         }
-        // The final estimate, rendered like the targets.
-        let estimated = model.density(&scene.density);
-        let mut final_scene = scene.clone();
-        final_scene.density = estimated.clone();
-        final_scene.render.photons = target_photons;
-        final_scene.render.spp = 8;
-        final_scene.render.seed = args.seed.wrapping_add(777);
-        let final_images = render_photon(&final_scene).images;
-        let eps = rel_l1(&estimated.data, &truth.data, &model.mask);
-        let r = pearson(&truth.data, &estimated.data, &model.mask);
-        let held = rel_rmse(&final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data);
+        let estimated = &result.estimated;
+        let eps = rel_l1(&estimated.data, &truth.data, &result.model.mask);
+        let r = pearson(&truth.data, &estimated.data, &result.model.mask);
+        let held = rel_rmse(&result.final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data);
         let seconds = rows.last().map_or(0.0, |r| r.wall_s);
-        let _ = writeln!(finals, "{},{},{seconds:.2},{eps:.6},{r:.6},{held:.6}", estimator.name(), rows.len());
+        let _ = writeln!(
+            finals,
+            "{},{trained},{refined},{seconds:.2},{eps:.6},{r:.6},{held:.6}",
+            estimator.name()
+        );
         let _ = writeln!(
             summary,
-            "| `{}` | {} | {eps:.3} | {r:.3} | {:.1} % |",
+            "| `{}` | {trained} | {refined} | {eps:.3} | {r:.3} | {:.1} % |",
             estimator.name(),
-            rows.len(),
             100.0 * held
         );
         eps_series.push(Series {
@@ -200,12 +212,12 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
     let axes = |title, y| Axes { title, x: "wall-clock time (s, 2 cores)", y, log_x: false, log_y: true };
     line_chart(
         &args.out.join("reconstruction_epsilon.svg"),
-        &axes("Density error against training time", "voxel relative L1 error epsilon"),
+        &axes("Density error against fitting time", "voxel relative L1 error epsilon"),
         &eps_series,
     )?;
     line_chart(
         &args.out.join("reconstruction_held_out.svg"),
-        &axes("Held-out camera error against training time", "held-out relative RMSE (%, per-update render)"),
+        &axes("Held-out camera error against fitting time", "held-out relative RMSE (%, per-update render)"),
         &held_series,
     )?;
     Ok(())

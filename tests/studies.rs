@@ -63,7 +63,9 @@ fn error_vs_time_smoke_run_writes_everything() {
     assert_eq!(finals.len(), 4, "one row per estimator");
     let (_, log) = csv(&dir.join("reconstruction.csv"));
     for estimator in ["fwd-full", "fwd-rand", "rev-sub", "rev-full"] {
-        assert!(log.iter().any(|r| r[0] == estimator), "{estimator}: no update logged");
+        for phase in ["train", "refine"] {
+            assert!(log.iter().any(|r| r[0] == estimator && r[2] == phase), "{estimator}: no {phase} update logged");
+        }
     }
     assert!(log.iter().all(|r| r[3..].iter().all(|v| v.parse::<f64>().unwrap().is_finite())));
     let (_, renders) = csv(&dir.join("renderer.csv"));

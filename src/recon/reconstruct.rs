@@ -28,8 +28,10 @@ pub struct Reconstruction {
     pub initial: Grid<f64>,
     /// The density after training.
     pub estimated: Grid<f64>,
-    /// The training log.
+    /// The log: the training updates', then the refinement's.
     pub log: Vec<LogRow>,
+    /// How many of the log's rows are training updates (fewer than asked under a time budget).
+    pub trained: usize,
     /// Images of every camera rendered from the estimate (final quality).
     pub final_images: Vec<Image>,
     /// The camera of the snapshots.
@@ -151,7 +153,7 @@ pub fn reconstruct(
     let initial = model.density(&scene.density);
 
     let train_settings = &settings.train;
-    let total = train_settings.iterations + settings.refine.updates;
+    let total = train_settings.iterations.saturating_add(settings.refine.updates);
     let mut eta = eta_for(problem, &model, train_settings, &settings.refine);
     let mut log = vec![];
     let mut snapshots = vec![];
@@ -170,8 +172,10 @@ pub fn reconstruct(
         log.push(row.clone());
     })?;
     let train_s = train_started.elapsed().as_secs_f64();
+    // Refinement updates number on from the training updates made (fewer than asked under a time budget).
+    let trained = log.len();
     let estimated = if settings.refine.updates > 0 {
-        refine(problem, &model, &settings.refine, train_settings.iterations, &mut |row| {
+        refine(problem, &model, &settings.refine, trained, &mut |row| {
             let row = LogRow { wall_s: row.wall_s + train_s, ..row.clone() };
             let eta_s = eta.observe(row.iteration, row.wall_s, Phase::Refine);
             progress(&Progress { row: &row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
@@ -186,7 +190,7 @@ pub fn reconstruct(
     final_scene.render.spp = settings.final_spp;
     final_scene.render.seed = settings.final_seed;
     let final_images = render_photon(&final_scene).images;
-    Ok(Reconstruction { model, initial, estimated, log, final_images, snapshot_camera: camera, snapshots })
+    Ok(Reconstruction { model, initial, estimated, log, trained, final_images, snapshot_camera: camera, snapshots })
 }
 
 /// The ETA of `settings` on `problem`; times one primal render per level
