@@ -209,7 +209,8 @@ pub struct PaperFitArgs {
     /// of each update's render noise than the last one (0: the last update's density).
     #[arg(long, default_value_t = 0.0)]
     pub refine_average: f64,
-    /// The refinement's steps fall exponentially over its updates to this fraction (1: constant). With
+    /// The refinement's steps fall exponentially over its updates (or its time budget) to this fraction
+    /// (1: constant). With
     /// the block terms, 0.1 takes a validation plume's 4x4-block image misfit from 2.3-3.0 % to 1.4-2.2 %.
     #[arg(long, default_value_t = 0.1)]
     pub refine_lr_final: f64,
