@@ -128,7 +128,8 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
     let problem = Problem { scene: &scene, targets, held_out, truth: Some(&truth) };
 
     let mut log = String::from("estimator,iteration,phase,wall_s,train_loss,held_out_rel_rmse,density_rel_l1\n");
-    let mut finals = String::from("estimator,updates,refine_updates,seconds,density_rel_l1,pearson_r,held_out_rel_rmse\n");
+    let mut finals =
+        String::from("estimator,updates,refine_updates,seconds,density_rel_l1,pearson_r,held_out_rel_rmse\n");
     let (mut eps_series, mut held_series) = (vec![], vec![]);
     let _ = writeln!(
         summary,
@@ -185,11 +186,7 @@ fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut String) -
         let r = pearson(&truth.data, &estimated.data, &result.model.mask);
         let held = rel_rmse(&result.final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data);
         let seconds = rows.last().map_or(0.0, |r| r.wall_s);
-        let _ = writeln!(
-            finals,
-            "{},{trained},{refined},{seconds:.2},{eps:.6},{r:.6},{held:.6}",
-            estimator.name()
-        );
+        let _ = writeln!(finals, "{},{trained},{refined},{seconds:.2},{eps:.6},{r:.6},{held:.6}", estimator.name());
         let _ = writeln!(
             summary,
             "| `{}` | {trained} | {refined} | {eps:.3} | {r:.3} | {:.1} % |",
