@@ -46,6 +46,10 @@ pub struct PriorFitArgs {
     /// (see --refine-average; 0: the last update's).
     #[arg(long, default_value_t = 0.0)]
     pub prior_refine_average: f64,
+    /// With a prior: the refinement's steps fall exponentially to this fraction (see --refine-lr-final;
+    /// 1: constant, the prior's default until its validation says otherwise).
+    #[arg(long, default_value_t = 1.0)]
+    pub prior_refine_lr_final: f64,
     /// With a prior: the refinement's block edges (see --refine-blocks). 4 and 8 help on every plume
     /// measured, most outside the training set (README, "Block terms"); `--prior-refine-blocks 0`: none.
     #[arg(long, value_delimiter = ',', default_values_t = [4, 8])]
@@ -66,6 +70,7 @@ impl Default for PriorFitArgs {
             prior_refine_global: true,
             prior_refine_additive: true,
             prior_refine_average: 0.0,
+            prior_refine_lr_final: 1.0,
             prior_refine_blocks: vec![4, 8],
             prior_estimator: Estimator::FwdFull,
         }
@@ -353,6 +358,7 @@ pub fn prior_method(
         global: fit.prior_refine_global,
         additive: fit.prior_refine_additive,
         average: fit.prior_refine_average,
+        lr_final: fit.prior_refine_lr_final,
         blocks: block_edges(&fit.prior_refine_blocks),
         ..refinement(fit.prior_refine, r)
     };
