@@ -55,7 +55,8 @@ pub fn peak_memory_mib() -> f64 {
 
 /// Writes a run's manifest: the fields of `settings` (any serde-serialisable
 /// settings struct, so no key is listed by hand) plus where the result came
-/// from: `git` revision, `wall_s` seconds and worker `threads`.
+/// from: `git` revision, `wall_s` seconds, worker `threads` and the
+/// machine's `speed_probe` (timed now, after the run).
 pub fn write_manifest<T: serde::Serialize>(path: &Path, settings: &T, wall_s: f64) -> Result<()> {
     let mut value = serde_json::to_value(settings).map_err(|e| Error(e.to_string()))?;
     let Value::Object(map) = &mut value else {
@@ -64,5 +65,7 @@ pub fn write_manifest<T: serde::Serialize>(path: &Path, settings: &T, wall_s: f6
     map.insert("git".into(), git_revision().into());
     map.insert("wall_s".into(), wall_s.into());
     map.insert("threads".into(), rayon::current_num_threads().into());
+    let probe = serde_json::to_value(super::speed_probe::speed_probe()).map_err(|e| Error(e.to_string()))?;
+    map.insert("speed_probe".into(), probe);
     write_json(path, &value)
 }

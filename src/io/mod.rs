@@ -1,5 +1,5 @@
 //! Files: `.npy` arrays, PNG previews, SVG plots and figures, CSV rows,
-//! manifests.
+//! manifests and the machine's speed beside them.
 
 pub mod figures;
 pub mod manifest;
@@ -8,4 +8,5 @@ pub mod panels;
 pub mod plot;
 pub mod png;
 pub mod rows;
+pub mod speed_probe;
 pub mod svg;
