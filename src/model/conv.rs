@@ -86,6 +86,23 @@ impl Act {
     }
 }
 
+/// Calls `f::<.., C>(args)` with `C` = `width` where it is one of the
+/// channel counts the decoders use, else with `C` = 0 (any width).
+macro_rules! by_width {
+    ($width:expr, $f:ident $(::<$($t:ty),*>)? ($($arg:expr),*)) => {
+        match $width {
+            1 => $f::<$($($t,)*)? 1>($($arg),*),
+            2 => $f::<$($($t,)*)? 2>($($arg),*),
+            4 => $f::<$($($t,)*)? 4>($($arg),*),
+            8 => $f::<$($($t,)*)? 8>($($arg),*),
+            16 => $f::<$($($t,)*)? 16>($($arg),*),
+            32 => $f::<$($($t,)*)? 32>($($arg),*),
+            64 => $f::<$($($t,)*)? 64>($($arg),*),
+            _ => $f::<$($($t,)*)? 0>($($arg),*),
+        }
+    };
+}
+
 /// The (input index, kernel index) pairs that feed output `o` along one axis
 /// (input edge `n`): `k = o + 1 - 2 i` in `0..4`, `i` in `0..n`. Interior
 /// outputs have two, the first and last output one.
@@ -141,6 +158,26 @@ where
     R: Real + std::ops::Mul<W, Output = R>,
     W: Copy + Send + Sync,
 {
+    by_width!(conv.c_out, forward_at::<R, W>(conv, kernel, bias, input, lin, lout, act))
+}
+
+/// [`conv_forward`] with the output channels `C` known when compiling (0:
+/// any number): the inner loops unroll and each voxel's sums stay in
+/// registers. Every sum adds the same terms in the same order for every
+/// `C`, so the bits are the same.
+fn forward_at<R, W, const C: usize>(
+    conv: &Conv,
+    kernel: &[W],
+    bias: &[R],
+    input: &[R],
+    lin: &Layout,
+    lout: &Layout,
+    act: Act,
+) -> Vec<R>
+where
+    R: Real + std::ops::Mul<W, Output = R>,
+    W: Copy + Send + Sync,
+{
     let (n, c_in, c_out) = (conv.n, conv.c_in, conv.c_out);
     let m = 2 * n;
     let mut out = vec![R::cst(0.0); lout.rows() * c_out];
@@ -149,19 +186,33 @@ where
         for (yx, row) in lout.in_slab(oz).zip(part.chunks_exact_mut(c_out)) {
             let (ty, ny) = taps(yx / m, n);
             let (tx, nx) = taps(yx % m, n);
-            row.copy_from_slice(&bias[..c_out]);
+            let mut acc: [R; C] = std::array::from_fn(|j| bias[j]);
+            if C == 0 {
+                row.copy_from_slice(&bias[..c_out]);
+            }
             for &(iz, kz) in &tz[..nz] {
                 for &(iy, ky) in &ty[..ny] {
                     for &(ix, kx) in &tx[..nx] {
                         let a = lin.row(input, (iz * n + iy) * n + ix, c_in);
                         let k = &kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
-                        for (&av, krow) in a.iter().zip(k.chunks_exact(c_out)) {
-                            for (r, &kv) in row.iter_mut().zip(krow) {
-                                *r += av * kv;
+                        if C == 0 {
+                            for (&av, krow) in a.iter().zip(k.chunks_exact(c_out)) {
+                                for (r, &kv) in row.iter_mut().zip(krow) {
+                                    *r += av * kv;
+                                }
+                            }
+                        } else {
+                            for (&av, krow) in a.iter().zip(k.chunks_exact(C)) {
+                                for j in 0..C {
+                                    acc[j] += av * krow[j];
+                                }
                             }
                         }
                     }
                 }
+            }
+            if C > 0 {
+                row.copy_from_slice(&acc);
             }
             for r in row.iter_mut() {
                 *r = act.apply(*r);
@@ -177,6 +228,12 @@ where
 /// z-slab sums its voxels' contributions into a partial of its own, in a
 /// fixed order; the partials are then added in slab order.
 pub(super) fn conv_grad_weights(c: &Conv, input: &[f64], lin: &Layout, g: &[f64], lout: &Layout, gw: &mut [f64]) {
+    by_width!(c.c_out, grad_weights_at(c, input, lin, g, lout, gw))
+}
+
+/// [`conv_grad_weights`] with the output channels `C` known when compiling
+/// (0: any); the same sums in the same order for every `C`.
+fn grad_weights_at<const C: usize>(c: &Conv, input: &[f64], lin: &Layout, g: &[f64], lout: &Layout, gw: &mut [f64]) {
     let (n, c_in, c_out) = (c.n, c.c_in, c.c_out);
     let m = 2 * n;
     let size = TAPS * c_in * c_out + c_out;
@@ -198,9 +255,18 @@ pub(super) fn conv_grad_weights(c: &Conv, input: &[f64], lin: &Layout, g: &[f64]
                         for &(ix, kx) in &tx[..nx] {
                             let a = lin.row(input, (iz * n + iy) * n + ix, c_in);
                             let blk = &mut kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
-                            for (&av, brow) in a.iter().zip(blk.chunks_exact_mut(c_out)) {
-                                for (bv, &gv) in brow.iter_mut().zip(gr) {
-                                    *bv += av * gv;
+                            if C == 0 {
+                                for (&av, brow) in a.iter().zip(blk.chunks_exact_mut(c_out)) {
+                                    for (bv, &gv) in brow.iter_mut().zip(gr) {
+                                        *bv += av * gv;
+                                    }
+                                }
+                            } else {
+                                let gr: &[f64; C] = gr.try_into().expect("a row has C channels");
+                                for (&av, brow) in a.iter().zip(blk.chunks_exact_mut(C)) {
+                                    for j in 0..C {
+                                        brow[j] += av * gr[j];
+                                    }
                                 }
                             }
                         }
@@ -224,6 +290,12 @@ pub(super) fn conv_grad_weights(c: &Conv, input: &[f64], lin: &Layout, g: &[f64]
 /// the transposed operation, input centric (each input gathers from the up
 /// to 4^3 outputs it feeds, skipping those not stored: their `g` is 0).
 pub(super) fn conv_grad_input(c: &Conv, w: &[f64], g: &[f64], lout: &Layout, lin: &Layout) -> Vec<f64> {
+    by_width!(c.c_out, grad_input_at(c, w, g, lout, lin))
+}
+
+/// [`conv_grad_input`] with the output channels `C` known when compiling
+/// (0: any); the same sums in the same order for every `C`.
+fn grad_input_at<const C: usize>(c: &Conv, w: &[f64], g: &[f64], lout: &Layout, lin: &Layout) -> Vec<f64> {
     let (n, c_in, c_out) = (c.n, c.c_in, c.c_out);
     let m = 2 * n;
     let kernel = c.weights(w);
@@ -242,12 +314,23 @@ pub(super) fn conv_grad_input(c: &Conv, w: &[f64], g: &[f64], lout: &Layout, lin
                         }
                         let gr = lout.row(g, o, c_out);
                         let k = &kernel[((kz * 4 + ky) * 4 + kx) * c_in * c_out..][..c_in * c_out];
-                        for (r, krow) in row.iter_mut().zip(k.chunks_exact(c_out)) {
-                            let mut s = 0.0;
-                            for (&kv, &gv) in krow.iter().zip(gr) {
-                                s += kv * gv;
+                        if C == 0 {
+                            for (r, krow) in row.iter_mut().zip(k.chunks_exact(c_out)) {
+                                let mut s = 0.0;
+                                for (&kv, &gv) in krow.iter().zip(gr) {
+                                    s += kv * gv;
+                                }
+                                *r += s;
                             }
-                            *r += s;
+                        } else {
+                            let gr: &[f64; C] = gr.try_into().expect("a row has C channels");
+                            for (r, krow) in row.iter_mut().zip(k.chunks_exact(C)) {
+                                let mut s = 0.0;
+                                for j in 0..C {
+                                    s += krow[j] * gr[j];
+                                }
+                                *r += s;
+                            }
                         }
                     }
                 }
@@ -289,6 +372,28 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn every_channel_width_gives_the_bits_of_the_generic_loops() {
+        for c_out in [1, 2, 4, 8, 16] {
+            let (n, c_in) = (3, 5);
+            let conv = Conv { n, c_in, c_out, w_off: 0, b_off: TAPS * c_in * c_out };
+            let w = normals(4, conv.b_off + c_out);
+            let input = normals(5, n * n * n * c_in);
+            let m = 2 * n;
+            let (lin, lout) = (Layout::new(&vec![true; n * n * n], n), Layout::new(&vec![true; m * m * m], m));
+            let (k, b) = (conv.weights(&w), &w[conv.b_off..]);
+            let act = Act::Leaky;
+            let out = conv_forward(&conv, k, b, &input, &lin, &lout, act);
+            assert_eq!(out, forward_at::<f64, f64, 0>(&conv, k, b, &input, &lin, &lout, act));
+            let g = normals(6, m * m * m * c_out);
+            let (mut fast, mut generic) = (vec![0.0; w.len()], vec![0.0; w.len()]);
+            conv_grad_weights(&conv, &input, &lin, &g, &lout, &mut fast);
+            grad_weights_at::<0>(&conv, &input, &lin, &g, &lout, &mut generic);
+            assert_eq!(fast, generic);
+            assert_eq!(conv_grad_input(&conv, &w, &g, &lout, &lin), grad_input_at::<0>(&conv, &w, &g, &lout, &lin));
+        }
     }
 
     #[test]
