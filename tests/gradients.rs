@@ -119,8 +119,8 @@ fn forward_and_reverse_agree_on_every_voxel() {
         let scale = fwd.iter().fold(0.0f64, |m, g| m.max(g.abs()));
         assert!(scale > 0.0);
         let mut worst = 0.0f64;
-        for v in 0..all.len() {
-            worst = worst.max((fwd[v] - rev.grad[v]).abs() / scale);
+        for (f, r) in fwd.iter().zip(&rev.grad) {
+            worst = worst.max((f - r).abs() / scale);
         }
         eprintln!(
             "order {order}, {shadows:?}: max |fwd - rev| / max |g| = {worst:.2e}, peak tape {} B",

@@ -29,7 +29,7 @@ pub fn validate(scene: &Scene) -> Result<()> {
     if d.shape.contains(&0) {
         bail!("volume.density: shape {:?} (Z, Y, X) is empty; every axis must be > 0", d.shape);
     }
-    if (0..3).any(|a| !(d.hi[a] > d.lo[a])) {
+    if (0..3).any(|a| d.hi[a] <= d.lo[a]) {
         bail!("volume.bbox_max: {:?} must exceed bbox_min {:?} on every axis", d.hi.as_slice(), d.lo.as_slice());
     }
     if let Some(n) = d.data.iter().position(|v| !v.is_finite() || *v < 0.0) {
@@ -46,7 +46,7 @@ pub fn validate(scene: &Scene) -> Result<()> {
     if !(0.0..=1.0).contains(&m.albedo) {
         bail!("volume.albedo: {} must be in [0, 1]", m.albedo);
     }
-    if !(m.g.abs() < 1.0) {
+    if m.g.is_nan() || m.g.abs() >= 1.0 {
         bail!("volume.g: {} must be in (-1, 1)", m.g);
     }
     if m.max_order == 0 || m.max_order > 64 {
