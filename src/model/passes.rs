@@ -86,11 +86,16 @@ impl Decoder {
         self.check(z.len(), w.len(), mask.len());
         let layouts = self.layouts(mask);
         let acts = self.activations(z, w, &layouts);
+        self.dense(&layouts, &acts)
+    }
+
+    /// The last layer's output as a dense grid (0 where it is not evaluated).
+    fn dense<R: Real>(&self, layouts: &[Layout], acts: &[Vec<R>]) -> Vec<R> {
         let (lout, density) = (&layouts[self.convs.len()], &acts[self.convs.len()]);
         // Scattered in parallel: for K-lane duals at res 128 the dense grid
         // is ~170 MB, and writing it costs more than the arithmetic.
         let mut out = Vec::new();
-        (0..mask.len())
+        (0..self.res.pow(3))
             .into_par_iter()
             .map(|v| if lout.has(v) { lout.row(density, v, 1)[0] } else { R::cst(0.0) })
             .collect_into_vec(&mut out);
@@ -137,9 +142,52 @@ impl Decoder {
     /// ```
     pub fn backward(&self, z: &[f64], w: &[f64], mask: &[bool], grad_out: &[f64]) -> (Vec<f64>, Vec<f64>) {
         self.check(z.len(), w.len(), mask.len());
-        assert_eq!(grad_out.len(), mask.len(), "Decoder: grad_out has the wrong length");
         let layouts = self.layouts(mask);
         let acts = self.activations(z, w, &layouts);
+        self.backward_from(z, w, mask, &layouts, &acts, grad_out)
+    }
+
+    /// [`Decoder::forward`], then [`Decoder::backward`] with `grad_out =
+    /// grad_of(density)`, evaluating the layers once for both: returns
+    /// `(density, dL/dz, dL/dw)`, the same bits as the two calls.
+    ///
+    /// ```
+    /// use dualphoton::model::Decoder;
+    /// let d = Decoder::paper_small(8)?;
+    /// let (z, w) = (d.init_latent(1), d.init(1));
+    /// let mask = vec![true; 512];
+    /// let (rho, gz, gw) = d.forward_backward(&z, &w, &mask, |rho| rho.to_vec());
+    /// assert_eq!(rho, d.forward(&z, &w, &mask));
+    /// assert_eq!((gz, gw), d.backward(&z, &w, &mask, &rho));
+    /// # Ok::<(), dualphoton::error::Error>(())
+    /// ```
+    pub fn forward_backward(
+        &self,
+        z: &[f64],
+        w: &[f64],
+        mask: &[bool],
+        grad_of: impl FnOnce(&[f64]) -> Vec<f64>,
+    ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        self.check(z.len(), w.len(), mask.len());
+        let layouts = self.layouts(mask);
+        let acts = self.activations(z, w, &layouts);
+        let density = self.dense(&layouts, &acts);
+        let grad_out = grad_of(&density);
+        let (gz, gw) = self.backward_from(z, w, mask, &layouts, &acts, &grad_out);
+        (density, gz, gw)
+    }
+
+    /// The vector-Jacobian product from the activations of a forward pass.
+    fn backward_from(
+        &self,
+        z: &[f64],
+        w: &[f64],
+        mask: &[bool],
+        layouts: &[Layout],
+        acts: &[Vec<f64>],
+        grad_out: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        assert_eq!(grad_out.len(), mask.len(), "Decoder: grad_out has the wrong length");
         let mut gw = vec![0.0; self.n_params];
         // g: dL/d(pre-activation) of the current layer's output, stored like it.
         let last = self.out_act();

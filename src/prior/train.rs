@@ -195,11 +195,13 @@ pub fn train(
             let mut gw_sum = vec![0.0; state.w.len()];
             for &i in batch {
                 let zi = state.z[i * latent..(i + 1) * latent].to_vec();
-                let out = d.forward(&zi, &state.w, &mask);
-                let resid: Vec<f64> = out.iter().zip(&plumes[i]).map(|(a, b)| a - b).collect();
-                loss_sum += resid.iter().map(|r| r * r).sum::<f64>() * norm;
-                let g: Vec<f64> = resid.iter().map(|r| 2.0 * r * norm).collect();
-                let (mut gz, gw) = d.backward(&zi, &state.w, &mask, &g);
+                let mut loss = 0.0;
+                let (_, mut gz, gw) = d.forward_backward(&zi, &state.w, &mask, |out| {
+                    let resid: Vec<f64> = out.iter().zip(&plumes[i]).map(|(a, b)| a - b).collect();
+                    loss = resid.iter().map(|r| r * r).sum::<f64>() * norm;
+                    resid.iter().map(|r| 2.0 * r * norm).collect()
+                });
+                loss_sum += loss;
                 gz.iter_mut().zip(&zi).for_each(|(g, z)| *g += 2.0 * settings.latent_penalty * z);
                 let index: Vec<usize> = (i * latent..(i + 1) * latent).collect();
                 state.adam_z.step_sparse(&mut state.z, &index, &gz);
@@ -262,9 +264,8 @@ pub fn fit_latent(
     let loss =
         |z: &[f64]| decoder.forward(z, w, &mask).iter().zip(target).map(|(a, b)| (a - b).powi(2)).sum::<f64>() * norm;
     for _ in 0..steps {
-        let out = decoder.forward(&z, w, &mask);
-        let g: Vec<f64> = out.iter().zip(target).map(|(a, b)| 2.0 * (a - b) * norm).collect();
-        let (mut gz, _) = decoder.backward(&z, w, &mask, &g);
+        let (_, mut gz, _) = decoder
+            .forward_backward(&z, w, &mask, |out| out.iter().zip(target).map(|(a, b)| 2.0 * (a - b) * norm).collect());
         gz.iter_mut().zip(&z).for_each(|(g, z)| *g += 2.0 * penalty * z);
         adam.step(&mut z, &gz);
     }
