@@ -298,9 +298,12 @@ fn arrays(state: &State) -> Vec<(&'static str, Vec<f64>)> {
 }
 
 /// Writes `state` into `dir` (exact float64 arrays and `checkpoint.json`),
-/// replacing what was there only once the new one is complete.
+/// replacing what was there only once the new one is complete: it is
+/// written beside `dir` (`checkpoint.json` last), then swapped in by two
+/// renames. A run killed between them leaves no `dir` but the complete new
+/// one beside it, which [`load_checkpoint`] then reads.
 pub fn save_checkpoint(settings: &PriorSettings, state: &State, dir: &Path) -> Result<()> {
-    let tmp = dir.with_extension("tmp");
+    let (tmp, old) = (dir.with_extension("tmp"), dir.with_extension("old"));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp)?;
     for (name, data) in arrays(state) {
@@ -309,8 +312,12 @@ pub fn save_checkpoint(settings: &PriorSettings, state: &State, dir: &Path) -> R
     let file = CheckpointFile { settings: settings.clone(), rows: state.rows.clone() };
     let text = serde_json::to_string_pretty(&file).map_err(|e| Error(e.to_string()))?;
     std::fs::write(tmp.join("checkpoint.json"), text)?;
-    let _ = std::fs::remove_dir_all(dir);
+    let _ = std::fs::remove_dir_all(&old);
+    if dir.exists() {
+        std::fs::rename(dir, &old)?;
+    }
     std::fs::rename(&tmp, dir)?;
+    let _ = std::fs::remove_dir_all(&old);
     Ok(())
 }
 
@@ -318,6 +325,9 @@ pub fn save_checkpoint(settings: &PriorSettings, state: &State, dir: &Path) -> R
 /// there is no checkpoint, an error if it was made with other settings or
 /// is damaged.
 pub fn load_checkpoint(settings: &PriorSettings, dir: &Path) -> Result<Option<State>> {
+    let beside = dir.with_extension("tmp");
+    // A save killed between its two renames left the complete new checkpoint beside `dir`.
+    let dir = if !dir.exists() && beside.join("checkpoint.json").exists() { beside.as_path() } else { dir };
     let json = dir.join("checkpoint.json");
     if !json.exists() {
         return Ok(None);
@@ -374,7 +384,15 @@ mod tests {
         let end = train(&s, &plumes, resumed, None, None, &mut |_, _| {}).unwrap();
         assert_eq!(end.w, whole.w);
         assert_eq!(end.z, whole.z);
-        let other = PriorSettings { seed: 9, ..s };
+        let other = PriorSettings { seed: 9, ..s.clone() };
         assert!(load_checkpoint(&other, &dir).unwrap_err().0.contains("other settings"));
+        // Killed between the two renames of a save: the new checkpoint is read from beside `dir`.
+        std::fs::rename(&dir, dir.with_extension("tmp")).unwrap();
+        assert_eq!(
+            load_checkpoint(&s, &dir).unwrap().unwrap().w,
+            load_checkpoint(&s, &dir.with_extension("tmp")).unwrap().unwrap().w
+        );
+        assert_eq!(load_checkpoint(&s, &dir).unwrap().unwrap().epochs_done(), 2);
+        let _ = std::fs::remove_dir_all(dir.with_extension("tmp"));
     }
 }
