@@ -92,6 +92,9 @@ struct MethodRun {
     wall_s: f64,
 }
 
+/// A row of the comparison table: its name, how to show it for one method, its target.
+type Measure<'a> = (&'a str, &'a dyn Fn(&MethodRun) -> String, &'a str);
+
 /// Reconstructs `problem` with `settings`, writes its log, arrays and
 /// figures into `dir`, and measures it against `truth`.
 fn run_method(
@@ -220,7 +223,7 @@ fn run(mut args: Args) -> Result<()> {
         runs.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(" | "),
         "|---".repeat(runs.len())
     );
-    let measures: [(&str, &dyn Fn(&MethodRun) -> String, &str); 13] = [
+    let measures: [Measure; 13] = [
         ("mean-density error", &|m| pct(m.d.mass_error.abs()), "<= 2 % (paper 3.5 %)"),
         ("max-density error", &|m| pct(m.d.max_error.abs()), "<= 10 % (paper 19.5 %)"),
         ("mass error delta", &|m| format!("{:+.1} %", 100.0 * m.d.mass_error), ""),

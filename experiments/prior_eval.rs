@@ -488,17 +488,15 @@ fn table_markdown(rows: &[Row]) -> String {
          |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
+        let carved = r.carved_mass.map_or("—".into(), |c| format!("{:.1} %", 100.0 * c));
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {} | {} | {:.1} % | {:.0} |",
+            "| {} | {} | {} | {} ({}) | {:.3} | {:.3} | {:+.0} % | {:.3} ({:.3}) | {:.3} | {:+.0} % | {:+.1} % | {} | {} | {:.1} % | {:.0} |",
             r.plume,
             r.group,
             r.method,
-            format!(
-                "{} ({})",
-                r.fit_hull_voxels.unwrap_or(r.hull_voxels),
-                r.carved_mass.map_or("—".into(), |c| format!("{:.1} %", 100.0 * c))
-            ),
+            r.fit_hull_voxels.unwrap_or(r.hull_voxels),
+            carved,
             r.block_pearson_r,
             r.block_rel_l1_epsilon,
             100.0 * r.block_max_error,

@@ -44,6 +44,8 @@ enum Preset {
     Paper,
 }
 
+/// Parsed once per run, so the size of the largest variant does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum Command {
     /// Render every camera of a scene to DIR/cam0.npy, DIR/cam0.png, DIR/cam1.npy, ...
