@@ -172,6 +172,26 @@ fn tape_primal_equals_f64_bit_for_bit() {
     }
 }
 
+#[test]
+fn kept_light_depths_are_the_bits_of_a_new_march() {
+    // Reverse mode reads the grids the render kept instead of marching them again.
+    for shadows in SHADOWS {
+        let scene = scene_with(3, shadows);
+        let frozen = Frozen::new(&scene, None);
+        let bits = |d: Option<&Vec<Option<dualphoton::volume::Grid<f64>>>>| {
+            d.map(|per_light| {
+                per_light
+                    .iter()
+                    .map(|g| g.as_ref().map(|g| g.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()))
+                    .collect::<Vec<_>>()
+            })
+        };
+        let kept = bits(frozen.primal_depths());
+        assert_eq!(kept.is_some(), shadows == Shadows::Grid, "{shadows:?}: grids kept only where the render has them");
+        assert_eq!(kept, bits(frozen.light_depths(&scene.density).as_ref()), "{shadows:?}");
+    }
+}
+
 fn tape_primal_matches(scene: &Scene) {
     use dualphoton::ad::tape::{self, Var};
     use dualphoton::volume::Grid;

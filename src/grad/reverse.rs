@@ -189,16 +189,16 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     });
     // Then the light-depth grids, light by light (a block of `depth_nodes` each).
     let first_depth = voxels + nodes * scene.cameras.len();
-    let depths = frozen.light_depths(density);
+    let depths = frozen.primal_depths();
     let depth_nodes = frozen.light_depth().map_or(0, |d| d.grid_len());
-    let leaf_depths = depths.as_ref().map(|per_light| {
+    let leaf_depths = depths.map(|per_light| {
         per_light
             .iter()
             .enumerate()
             .map(|(l, g)| g.as_ref().map(|g| leaf_grid(g, first_depth + l * depth_nodes)))
             .collect::<Vec<_>>()
     });
-    let leaves = first_depth + depths.as_ref().map_or(0, |d| d.len() * depth_nodes);
+    let leaves = first_depth + depths.map_or(0, |d| d.len() * depth_nodes);
     let mut total = vec![0.0; leaves];
 
     // (1) Pixels.
@@ -225,7 +225,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     });
 
     // (1b) Light-depth adjoints -> density adjoints, back along each node's shadow ray.
-    if let (Some(per_light), Some(light_depth)) = (&depths, frozen.light_depth()) {
+    if let (Some(per_light), Some(light_depth)) = (depths, frozen.light_depth()) {
         for l in (0..per_light.len()).filter(|&l| per_light[l].is_some()) {
             let first = first_depth + l * depth_nodes;
             let mut adjoint = total[first..first + depth_nodes].to_vec();

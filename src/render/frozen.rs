@@ -51,6 +51,9 @@ pub struct Frozen<'a> {
     kernel: Kernel,
     /// The light-depth grids' nodes (`None`: marched shadow rays).
     light_depth: Option<LightDepth>,
+    /// The light-depth grids of the primal density, kept for reverse mode
+    /// (which would otherwise march them again; `None`: marched shadow rays).
+    depths: Option<Depths<f64>>,
     /// Index of each camera's first pixel among all pixels (names the pixel streams).
     first_pixel: Vec<u64>,
     /// The rendered images (primal), one per camera.
@@ -125,11 +128,12 @@ impl<'a> Frozen<'a> {
             geometry,
             kernel,
             light_depth,
+            depths: None,
             first_pixel,
             images: vec![],
             timings,
         };
-        let (images, gather, shadows, camera) = {
+        let (images, depths, gather, shadows, camera) = {
             let t = Instant::now();
             let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
             let gather = t.elapsed().as_secs_f64();
@@ -145,9 +149,10 @@ impl<'a> Frozen<'a> {
                     Image { width: camera.width, height: camera.height, data }
                 })
                 .collect();
-            (images, gather, shadows, t.elapsed().as_secs_f64())
+            (images, depths, gather, shadows, t.elapsed().as_secs_f64())
         };
         frozen.images = images;
+        frozen.depths = depths;
         frozen.timings.gather += gather;
         frozen.timings.shadows = shadows;
         frozen.timings.camera = camera;
@@ -181,6 +186,12 @@ impl<'a> Frozen<'a> {
     /// `None` where the scene asks for marched shadow rays.
     pub fn light_depths<R: Real>(&self, density: &Grid<R>) -> Option<Depths<R>> {
         self.light_depth.as_ref().map(|d| d.depths(&self.marcher, density))
+    }
+
+    /// The light-depth grids of the primal density, as
+    /// [`light_depths`](Self::light_depths) of it gives them (same bits).
+    pub fn primal_depths(&self) -> Option<&Depths<f64>> {
+        self.depths.as_ref()
     }
 
     /// The light-depth grids' nodes and shadow rays (`None`: marched shadow rays).
