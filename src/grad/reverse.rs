@@ -19,7 +19,6 @@ use super::loss::mse_residuals;
 use crate::ad::tape::{self, Var};
 use crate::image::Image;
 use crate::render::frozen::Frozen;
-use crate::render::march::Step;
 use crate::render::splat::{phase_towards, Estimate};
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
@@ -266,12 +265,10 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     if !power_adjoint.is_empty() {
         let (paths, path_scale) = draw_subset(frozen.paths(), subset.paths, &mut rng);
         let paths: Vec<usize> = paths.into_iter().filter(|&i| !frozen.path_photons(i).is_empty()).collect();
-        let tracer = frozen.tracer();
-        let (count, seed) = (scene.render.photons, scene.render.seed);
         let p2 = sweep(&paths, leaves, &mut total, |scratch, i| {
-            let mut steps: Vec<(Step, f64)> = vec![];
+            let mut steps = vec![];
             let mut powers: Vec<Var> = vec![];
-            tracer.replay(i as u64, count, seed, &leaf_density, &mut steps, &mut powers);
+            frozen.replay_path(i, &leaf_density, &mut steps, &mut powers);
             let seeds: Vec<(Var, f64)> =
                 powers.iter().zip(frozen.path_photons(i)).map(|(&v, p)| (v, power_adjoint[p] * path_scale)).collect();
             tape::backward(&seeds, |leaf, a| scratch.add(leaf, a));

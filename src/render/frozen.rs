@@ -8,7 +8,7 @@
 use super::camera_rays::CameraRays;
 use super::light_depth::{Depths, LightDepth};
 use super::march::{Marcher, Step};
-use super::photons::{emitters, Emitter, Photon, Tracer};
+use super::photons::{emitters, Emitter, Flights, Photon, Tracer};
 use super::splat::{Estimate, Kernel, SplatGeometry};
 use crate::ad::Real;
 use crate::image::Image;
@@ -47,6 +47,8 @@ pub struct Frozen<'a> {
     pub photons: Vec<Photon>,
     /// Photons of path `i` are `photons[path_start[i]..path_start[i + 1]]`.
     path_start: Vec<usize>,
+    /// Every path's flights, for replays.
+    flights: Flights,
     geometry: Option<SplatGeometry>,
     kernel: Kernel,
     /// The light-depth grids' nodes (`None`: marched shadow rays).
@@ -67,6 +69,13 @@ impl<'a> Frozen<'a> {
     /// given, widens where the medium may be (marching does not skip it):
     /// use it when derivatives are wanted for voxels whose density is 0 now.
     pub fn new(scene: &'a Scene, support: Option<&Grid<f64>>) -> Self {
+        Self::build(scene, support, true)
+    }
+
+    /// [`new`](Self::new), keeping the paths' flights only if `replayable`:
+    /// a render that is never differentiated (a high-quality reference of
+    /// a million photons) need not hold them.
+    pub(super) fn build(scene: &'a Scene, support: Option<&Grid<f64>>, replayable: bool) -> Self {
         let start = Instant::now();
         let settings = &scene.render;
         let density = &scene.density;
@@ -85,7 +94,7 @@ impl<'a> Frozen<'a> {
         let guide: Vec<_> = scene.cameras.iter().map(|c| c.position).collect();
         let tracer =
             Tracer { density, medium: &scene.medium, marcher: &photon_marcher, emitters: &emitters, guide: &guide };
-        let photons = tracer.trace(settings.photons, settings.seed);
+        let (photons, flights) = tracer.trace(settings.photons, settings.seed, replayable);
         let mut path_start = vec![0usize; settings.photons as usize + 1];
         for p in &photons {
             path_start[p.path as usize + 1] += 1;
@@ -125,6 +134,7 @@ impl<'a> Frozen<'a> {
             guide,
             photons,
             path_start,
+            flights,
             geometry,
             kernel,
             light_depth,
@@ -250,19 +260,25 @@ impl<'a> Frozen<'a> {
         self.geometry.as_ref().map(|g| (g, &self.kernel))
     }
 
+    /// Appends the powers of path `i`'s stored photons, as functions of
+    /// `density`, to `powers` (the path replayed with its decisions
+    /// unchanged, [`Tracer::replay`]); `steps` is scratch.
+    pub fn replay_path<R: Real>(&self, i: usize, density: &Grid<R>, steps: &mut Vec<Step>, powers: &mut Vec<R>) {
+        let (count, seed) = (self.scene.render.photons, self.scene.render.seed);
+        self.tracer().replay(i as u64, count, seed, self.flights.of(i), density, steps, powers);
+    }
+
     /// Powers of all stored photons as functions of `density` (path replay).
     pub fn photon_powers<R: Real>(&self, density: &Grid<R>) -> Vec<R> {
-        let tracer = self.tracer();
-        let (count, seed) = (self.scene.render.photons, self.scene.render.seed);
         const CHUNK: usize = 512;
         let parts: Vec<Vec<R>> = (0..self.paths().div_ceil(CHUNK))
             .into_par_iter()
             .map(|c| {
-                let mut steps: Vec<(Step, f64)> = vec![];
+                let mut steps = vec![];
                 let mut powers = vec![];
                 for i in c * CHUNK..((c + 1) * CHUNK).min(self.paths()) {
                     if !self.path_photons(i).is_empty() {
-                        tracer.replay(i as u64, count, seed, density, &mut steps, &mut powers);
+                        self.replay_path(i, density, &mut steps, &mut powers);
                     }
                 }
                 powers

@@ -21,6 +21,7 @@ pub struct PhotonRender {
 
 /// Renders every camera of `scene` with the settings in `scene.render`.
 pub fn render_photon(scene: &Scene) -> PhotonRender {
-    let frozen = Frozen::new(scene, None);
+    // Consumed here, never replayed: no flights kept.
+    let frozen = Frozen::build(scene, None, false);
     PhotonRender { stored_photons: frozen.photons.len(), timings: frozen.timings, images: frozen.images }
 }

@@ -34,6 +34,39 @@ pub struct Photon {
     pub order: u8,
 }
 
+/// One free flight of a traced path, as a replay needs it: where it
+/// collided and what the sampling density gave along it, so that a replay
+/// marches only up to the collision, in the density it differentiates,
+/// instead of marching the sampling density along the whole ray again.
+#[derive(Clone, Copy, Debug)]
+pub struct Flight {
+    /// Collision distance along the flight's ray.
+    t: f64,
+    /// `1 - T` of the whole segment (the forced collision's weight).
+    weight: f64,
+    /// Number of the marching step the collision is in.
+    step: u32,
+    /// Optical depth of the sampling density from the ray's origin to `t`.
+    depth: f64,
+    /// Extinction of the sampling density in that step.
+    sigma: f64,
+}
+
+/// The flights of every traced path: path `i`'s are
+/// `flights[start[i]..start[i + 1]]`, in order.
+#[derive(Clone, Debug, Default)]
+pub struct Flights {
+    flights: Vec<Flight>,
+    start: Vec<usize>,
+}
+
+impl Flights {
+    /// Path `i`'s flights.
+    pub fn of(&self, i: usize) -> &[Flight] {
+        &self.flights[self.start[i]..self.start[i + 1]]
+    }
+}
+
 /// Everything photon tracing reads.
 pub struct Tracer<'a> {
     /// Density the sampling decisions use.
@@ -63,44 +96,86 @@ impl Tracer<'_> {
         self.medium.max_order < 2 || count == 0 || self.total_power() <= 0.0 || self.medium.albedo == 0.0
     }
 
-    /// Traces `count` photons with streams of `seed`; stored photons in
-    /// path order, whatever the number of threads. Empty at max_order 1.
-    pub fn trace(&self, count: u64, seed: u64) -> Vec<Photon> {
+    /// Traces `count` photons with streams of `seed`: the stored photons in
+    /// path order, whatever the number of threads (empty at max_order 1),
+    /// and, if `keep_flights`, every path's flights for [`replay`](Self::replay)
+    /// (else none: replaying then panics).
+    pub fn trace(&self, count: u64, seed: u64, keep_flights: bool) -> (Vec<Photon>, Flights) {
         if self.idle(count) {
-            return vec![];
+            return (vec![], Flights { flights: vec![], start: vec![0; count as usize + 1] });
         }
         const CHUNK: u64 = 1024;
-        let chunks: Vec<Vec<Photon>> = (0..count.div_ceil(CHUNK) as usize)
+        let chunks: Vec<(Vec<Photon>, Vec<Flight>, Vec<usize>)> = (0..count.div_ceil(CHUNK) as usize)
             .into_par_iter()
             .map(|c| {
                 let range = c as u64 * CHUNK..((c as u64 + 1) * CHUNK).min(count);
                 let mut out = Vec::with_capacity(range.clone().count() * (self.medium.max_order as usize - 1));
+                let (mut flights, mut per_path) = (vec![], vec![]);
                 let mut steps = Vec::new();
                 for i in range {
-                    self.trace_one::<f64>(i, count, seed, &mut steps, None, &mut out, &mut vec![]);
+                    let before = flights.len();
+                    self.trace_one(i, count, seed, &mut steps, &mut out, &mut flights);
+                    per_path.push(flights.len() - before);
+                    if !keep_flights {
+                        flights.clear();
+                    }
                 }
-                out
+                (out, flights, per_path)
             })
             .collect();
-        chunks.into_iter().flatten().collect()
+        let mut start = Vec::with_capacity(count as usize + 1);
+        start.push(0);
+        let (mut photons, mut flights) = (vec![], vec![]);
+        for (out, f, per_path) in chunks {
+            photons.extend(out);
+            flights.extend(f);
+            if keep_flights {
+                for n in per_path {
+                    start.push(start.last().unwrap() + n);
+                }
+            }
+        }
+        (photons, Flights { flights, start })
     }
 
-    /// Replays path `i` of `trace(count, seed)` with its decisions unchanged
-    /// and appends the powers of its stored photons, in the same order, as
-    /// functions of `density` (the frozen estimator, docs/DESIGN.md §3). Each
-    /// free flight's weight gets the factor `sigma_t T / (sigma_t T)_detached`
-    /// (exactly 1 in the primal), where the derivatives live.
+    /// Replays path `i` of `trace(count, seed)`, whose flights are
+    /// `flights`, with its decisions unchanged and appends the powers of its
+    /// stored photons, in the same order, as functions of `density` (the
+    /// frozen estimator, docs/DESIGN.md §3). Each free flight's weight gets
+    /// the factor `sigma_t T / (sigma_t T)_detached` (exactly 1 in the
+    /// primal), where the derivatives live.
     pub fn replay<R: Real>(
         &self,
         i: u64,
         count: u64,
         seed: u64,
+        flights: &[Flight],
         density: &Grid<R>,
-        steps: &mut Vec<(Step, f64)>,
+        steps: &mut Vec<Step>,
         powers: &mut Vec<R>,
     ) {
-        if !self.idle(count) {
-            self.trace_one(i, count, seed, steps, Some(density), &mut vec![], powers);
+        if self.idle(count) {
+            return;
+        }
+        let mut rng = Rng::new(seed, Purpose::Photon, i);
+        let mut ray = self.emission(i, count, &mut rng);
+        let mut power_r = R::cst(self.total_power() / count as f64);
+        for (n, f) in flights.iter().enumerate() {
+            let order = n as u32 + 1;
+            // The draws of the forced collision: the marching jitter, then the collision.
+            let jitter = rng.uniform();
+            rng.uniform();
+            power_r = power_r * f.weight * self.flight_ratio(density, &ray, jitter, f, steps);
+            if order >= 2 {
+                powers.push(power_r);
+            }
+            if order == self.medium.max_order {
+                return;
+            }
+            let pos = ray.at(f.t);
+            let (dir, weight) = self.scatter(&pos, &ray.dir, &mut rng);
+            power_r = power_r * (self.medium.albedo * weight);
+            ray = Ray { origin: pos, dir };
         }
     }
 
@@ -117,40 +192,38 @@ impl Tracer<'_> {
         self.emitters.iter().rev().find(|e| e.power > 0.0).unwrap()
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn trace_one<R: Real>(
+    /// Photon `i`'s first ray, from its emitter (three draws of `rng`).
+    fn emission(&self, i: u64, count: u64, rng: &mut Rng) -> Ray {
+        let e = self.emitter_of(i, count, self.total_power());
+        Ray { origin: e.position, dir: e.sample(rng.uniform(), rng.uniform(), rng.uniform()) }
+    }
+
+    /// Traces path `i`: appends its stored photons to `out` and its flights to `flights`.
+    fn trace_one(
         &self,
         i: u64,
         count: u64,
         seed: u64,
         steps: &mut Vec<(Step, f64)>,
-        weights: Option<&Grid<R>>,
         out: &mut Vec<Photon>,
-        powers: &mut Vec<R>,
+        flights: &mut Vec<Flight>,
     ) {
-        let total = self.total_power();
         let mut rng = Rng::new(seed, Purpose::Photon, i);
-        let e = self.emitter_of(i, count, total);
-        let mut ray = Ray { origin: e.position, dir: e.sample(rng.uniform(), rng.uniform(), rng.uniform()) };
-        let mut power = total / count as f64;
-        let mut power_r = R::cst(power);
+        let mut ray = self.emission(i, count, &mut rng);
+        let mut power = self.total_power() / count as f64;
         for order in 1..=self.medium.max_order {
             let Some((t, weight, m)) = self.forced_collision(&ray, &mut rng, steps) else { return };
+            flights.push(detached_flight(steps, m, t, weight));
             power *= weight;
-            if let Some(g) = weights {
-                power_r = power_r * weight * self.flight_ratio(g, &ray, steps, m, t);
-            }
             let pos = ray.at(t);
             if order >= 2 {
                 out.push(Photon { pos, dir: ray.dir, power, path: i as u32, order: order as u8 });
-                powers.push(power_r);
             }
             if order == self.medium.max_order {
                 return;
             }
             let (dir, weight) = self.scatter(&pos, &ray.dir, &mut rng);
             power *= self.medium.albedo * weight;
-            power_r = power_r * (self.medium.albedo * weight);
             ray = Ray { origin: pos, dir };
         }
     }
@@ -182,21 +255,25 @@ impl Tracer<'_> {
     }
 
     /// `sigma_t(x_t) e^{-tau(t)}` of `density` over the same of the sampling
-    /// density, for a collision at `t` in step `m`; the primal is exactly 1.
-    fn flight_ratio<R: Real>(&self, density: &Grid<R>, ray: &Ray, steps: &[(Step, f64)], m: usize, t: f64) -> R {
+    /// density, for flight `f` along `ray` marched with `jitter`; the primal
+    /// is exactly 1. Marches only the steps up to the collision (`steps`
+    /// is scratch).
+    fn flight_ratio<R: Real>(&self, density: &Grid<R>, ray: &Ray, jitter: f64, f: &Flight, steps: &mut Vec<Step>) -> R {
+        let m = f.step as usize;
+        steps.clear();
+        self.marcher.steps(ray, f64::INFINITY, jitter, |s| {
+            steps.push(s);
+            steps.len() <= m
+        });
         let scale = self.medium.sigma_t_scale;
         let mut depth = R::cst(0.0);
-        let mut depth_detached = 0.0;
-        for (s, sigma) in &steps[..m] {
+        for s in &steps[..m] {
             depth += density.at(&ray.at(s.sample)) * scale * s.h;
-            depth_detached += sigma * s.h;
         }
-        let (s, sigma) = steps[m];
+        let s = steps[m];
         let sigma_r = density.at(&ray.at(s.sample)) * scale;
-        let dt = t - s.start;
-        depth += sigma_r * dt;
-        depth_detached += sigma * dt;
-        sigma_r / sigma * (-(depth - depth_detached)).exp()
+        depth += sigma_r * (f.t - s.start);
+        sigma_r / f.sigma * (-(depth - f.depth)).exp()
     }
 
     /// A collision distance along `ray` drawn from `sigma_t T / (1 - T_all)`
@@ -232,4 +309,17 @@ impl Tracer<'_> {
         let m = steps.iter().rposition(|(_, sigma)| *sigma > 0.0)?;
         Some((steps[m].0.start + steps[m].0.h, weight, m))
     }
+}
+
+/// The flight of a collision at `t` in step `m` of the marched `steps`:
+/// the sampling density's optical depth up to `t`, summed in step order
+/// as a replay's own depth is.
+fn detached_flight(steps: &[(Step, f64)], m: usize, t: f64, weight: f64) -> Flight {
+    let mut depth = 0.0;
+    for (s, sigma) in &steps[..m] {
+        depth += sigma * s.h;
+    }
+    let (s, sigma) = steps[m];
+    depth += sigma * (t - s.start);
+    Flight { t, weight, step: m as u32, depth, sigma }
 }
