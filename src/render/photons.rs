@@ -102,7 +102,8 @@ impl Tracer<'_> {
     /// (else none: replaying then panics).
     pub fn trace(&self, count: u64, seed: u64, keep_flights: bool) -> (Vec<Photon>, Flights) {
         if self.idle(count) {
-            return (vec![], Flights { flights: vec![], start: vec![0; count as usize + 1] });
+            let start = vec![0; if keep_flights { count as usize + 1 } else { 1 }];
+            return (vec![], Flights { flights: vec![], start });
         }
         const CHUNK: u64 = 1024;
         let chunks: Vec<(Vec<Photon>, Vec<Flight>, Vec<usize>)> = (0..count.div_ceil(CHUNK) as usize)
@@ -115,24 +116,23 @@ impl Tracer<'_> {
                 for i in range {
                     let before = flights.len();
                     self.trace_one(i, count, seed, &mut steps, &mut out, &mut flights);
-                    per_path.push(flights.len() - before);
-                    if !keep_flights {
+                    if keep_flights {
+                        per_path.push(flights.len() - before);
+                    } else {
                         flights.clear();
                     }
                 }
                 (out, flights, per_path)
             })
             .collect();
-        let mut start = Vec::with_capacity(count as usize + 1);
-        start.push(0);
+        // Without flights kept, every `per_path` is empty and `start` stays `[0]`: nothing to replay.
+        let mut start = vec![0];
         let (mut photons, mut flights) = (vec![], vec![]);
         for (out, f, per_path) in chunks {
             photons.extend(out);
             flights.extend(f);
-            if keep_flights {
-                for n in per_path {
-                    start.push(start.last().unwrap() + n);
-                }
+            for n in per_path {
+                start.push(start.last().unwrap() + n);
             }
         }
         (photons, Flights { flights, start })
@@ -144,6 +144,7 @@ impl Tracer<'_> {
     /// frozen estimator, docs/DESIGN.md §3). Each free flight's weight gets
     /// the factor `sigma_t T / (sigma_t T)_detached` (exactly 1 in the
     /// primal), where the derivatives live.
+    #[allow(clippy::too_many_arguments)]
     pub fn replay<R: Real>(
         &self,
         i: u64,
