@@ -122,6 +122,18 @@ const ROWS: [&str; 10] = [
     "oracle_latent",
     "oracle_latent_refine",
 ];
+/// The rows a method writes: a method runs again while any of them is missing (a
+/// latent fit whose refinement was cut off is fitted again; the fit is deterministic).
+fn rows_of(method: &str, refine_updates: usize) -> Vec<String> {
+    let refined =
+        |m: &str| if refine_updates > 0 { vec![m.to_string(), format!("{m}_refine")] } else { vec![m.to_string()] };
+    match method {
+        "oracle" => ROWS.iter().filter(|r| r.starts_with("oracle")).map(|r| r.to_string()).collect(),
+        "paper" => vec!["paper".into()],
+        m => refined(m),
+    }
+}
+
 /// The blur (voxels) `train_prior` learned its plumes with (models/plume64/manifest.json).
 const PRIOR_BLUR: f64 = 1.0;
 
@@ -297,7 +309,12 @@ fn run(args: Args) -> Result<()> {
         let wanted: Vec<&str> = methods
             .iter()
             .copied()
-            .filter(|m| args.fresh || !rows_dir.join(format!("{}_{m}.json", which.name())).exists())
+            .filter(|m| {
+                args.fresh
+                    || rows_of(m, args.fit.prior_refine)
+                        .iter()
+                        .any(|row| !rows_dir.join(format!("{}_{row}.json", which.name())).exists())
+            })
             .collect();
         if wanted.is_empty() {
             continue;
@@ -604,4 +621,18 @@ fn figures(args: &Args, plumes: &[Which], cache: &Path) -> Result<()> {
 fn slice(d: &[f64], res: usize, y: usize) -> Image {
     let data = (0..res * res).map(|p| d[((p / res) * res + y) * res + p % res]).collect();
     Image { width: res, height: res, data }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_method_runs_again_while_any_of_its_rows_is_missing() {
+        assert_eq!(rows_of("prior", 200), ["prior", "prior_refine"]);
+        assert_eq!(rows_of("prior", 0), ["prior"]);
+        assert_eq!(rows_of("prior_tune", 5), ["prior_tune", "prior_tune_refine"]);
+        assert_eq!(rows_of("paper", 200), ["paper"]);
+        assert_eq!(rows_of("oracle", 0).len(), 5);
+    }
 }
