@@ -10,11 +10,16 @@
 //! - `shadows.csv`: the lights' transmittance from the light-depth grids
 //!   (default, and one node per voxel) against marched shadow rays, for
 //!   single scattering alone (the only order it enters) and for orders 1-3,
-//!   against references of the same orders; and a thick plume (the built-in
-//!   one blurred, an eighth of the box) seen by all five cameras;
+//!   against references of the same orders; and blurred plumes (the
+//!   built-in one blurred: an eighth and a quarter of the box) seen by all
+//!   five cameras;
+//! - `blurred.csv`: the blurred plumes' stage times at the defaults;
 //! - `summary.md`, `manifest.json`;
-//! - `reference_<res>/`: the reference images (rendered once, reused when
-//!   their manifest matches).
+//! - `reference_<res>/`, `reference_blur<blur>_<res>/`: the reference
+//!   images (rendered once, reused when their manifest matches).
+//!
+//! `--res` with no value leaves out the built-in plume: only the blurred
+//! plumes are measured (a few minutes).
 //!
 //! `--smoke` runs a tiny version (for tests of this binary).
 
@@ -23,7 +28,7 @@ use dualphoton::data::plume::{plume, plume_stats};
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::{reference_noise, rel_mean_diff};
 use dualphoton::eval::reference::{self, REF_SEED};
-use dualphoton::eval::scenes::thick_plume;
+use dualphoton::eval::scenes::blurred_plume;
 use dualphoton::eval::sweep::{
     error, median_of, photon_sweep, shadow_comparison, timed, ShadowPoint, SweepPoint, ERROR_BLOCK,
 };
@@ -39,8 +44,8 @@ use std::time::Instant;
 #[derive(Parser, Serialize)]
 #[command(about = "Photon-mapping speed and error against a path-traced reference on the paper rig")]
 struct Args {
-    /// Resolutions to run (grid res^3, images res x res).
-    #[arg(long, value_delimiter = ',', default_value = "64,128")]
+    /// Resolutions to run (grid res^3, images res x res); none: only the blurred plumes.
+    #[arg(long, value_delimiter = ',', num_args = 0.., default_value = "64,128")]
     res: Vec<usize>,
     /// Samples per pixel of the path-traced reference, per resolution (same order as --res).
     #[arg(long, value_delimiter = ',', default_value = "16384,4096")]
@@ -54,10 +59,13 @@ struct Args {
     /// Kernel radii of the sweep, in voxels.
     #[arg(long, value_delimiter = ',', default_value = "1,1.5,2,3")]
     radii: Vec<f64>,
-    /// Resolution of the thick plume (0: leave it out).
+    /// Resolution of the blurred plumes (0: leave them out).
     #[arg(long, default_value_t = 64)]
     thick_res: usize,
-    /// Samples per pixel of the thick plume's reference.
+    /// Blurs of the blurred plumes, in voxels at 64^3 (scaled with the resolution).
+    #[arg(long, value_delimiter = ',', default_value = "3,5")]
+    blurs: Vec<f64>,
+    /// Samples per pixel of the blurred plumes' references.
     #[arg(long, default_value_t = 4096)]
     thick_ref_spp: u32,
     /// Output directory.
@@ -93,10 +101,25 @@ struct TimingRow {
     threads: usize,
 }
 
+/// Stage times of the default render of one blurred plume (all 5 cameras).
+#[derive(Serialize)]
+struct BlurredRow {
+    res: usize,
+    blur_voxels: f64,
+    occupied: f64,
+    cameras: usize,
+    trace_s: f64,
+    gather_s: f64,
+    shadows_s: f64,
+    camera_s: f64,
+    total_s: f64,
+    threads: usize,
+}
+
 /// One way of finding the lights' transmittance on one scene and orders.
 #[derive(Serialize)]
 struct ShadowRow {
-    scene: &'static str,
+    scene: String,
     res: usize,
     cameras: usize,
     orders: &'static str,
@@ -109,7 +132,7 @@ struct ShadowRow {
 }
 
 impl ShadowRow {
-    fn new(scene: &'static str, res: usize, cameras: usize, orders: &'static str, p: ShadowPoint) -> Self {
+    fn new(scene: String, res: usize, cameras: usize, orders: &'static str, p: ShadowPoint) -> Self {
         let ShadowPoint { shadows, cell, seconds, camera_seconds, block_rel_rmse, mean_rel_diff } = p;
         ShadowRow {
             scene,
@@ -147,7 +170,9 @@ impl SweepRow {
 
 fn run(mut args: Args) -> Result<()> {
     if args.smoke {
-        args.res = vec![16];
+        // An empty --res stays empty: only the blurred plumes.
+        args.res.truncate(1);
+        args.res.iter_mut().for_each(|r| *r = 16);
         args.ref_spp = vec![64];
         args.repeats = 1;
         args.photons = vec![10_000, 30_000];
@@ -214,7 +239,7 @@ fn run(mut args: Args) -> Result<()> {
         for (orders, s, rf) in [("1", &single_scene, &single_reference), ("1-3", &scene, &reference)] {
             eprintln!("res {res}, orders {orders}:");
             for point in shadow_comparison(s, rf, args.repeats) {
-                shadows.push(ShadowRow::new("plume", res, s.cameras.len(), orders, point));
+                shadows.push(ShadowRow::new("plume".into(), res, s.cameras.len(), orders, point));
             }
         }
 
@@ -250,26 +275,74 @@ fn run(mut args: Args) -> Result<()> {
         sweep.extend(points.into_iter().map(|p| SweepRow::new(res, p)));
         summary.push('\n');
     }
-    let mut thick_occupied = 0.0;
+    let mut blurred = vec![];
     if args.thick_res > 0 {
         let res = args.thick_res;
-        let scene = rig::paper_scene(thick_plume(res, SEED), res);
-        thick_occupied = plume_stats(&scene.density).fraction_occupied;
-        eprintln!("thick plume {res}^3: reference at {} spp", args.thick_ref_spp);
-        let rf =
-            reference::reference(&scene, SEED, args.thick_ref_spp, &args.out.join(format!("reference_thick_{res}")))?;
-        for point in shadow_comparison(&scene, &rf, args.repeats) {
-            shadows.push(ShadowRow::new("thick plume", res, scene.cameras.len(), "1-3", point));
+        // First the built-in plume's default render, as in `timing.csv` (4 training cameras): this
+        // run's machine against the one that wrote another run's rows.
+        for blur in std::iter::once(0.0).chain(args.blurs.iter().copied()) {
+            let scene = if blur > 0.0 {
+                rig::paper_scene(blurred_plume(res, SEED, blur), res)
+            } else {
+                rig::paper_training_scene(plume(res, SEED), res)
+            };
+            let occupied = plume_stats(&scene.density).fraction_occupied;
+            let (_, times) = timed(&scene, args.repeats);
+            blurred.push(BlurredRow {
+                res,
+                blur_voxels: blur,
+                occupied,
+                cameras: scene.cameras.len(),
+                trace_s: median_of(&times, |t| t.trace),
+                gather_s: median_of(&times, |t| t.gather),
+                shadows_s: median_of(&times, |t| t.shadows),
+                camera_s: median_of(&times, |t| t.camera),
+                total_s: median_of(&times, |t| t.total),
+                threads: rayon::current_num_threads(),
+            });
+            if blur <= 0.0 {
+                continue;
+            }
+            let name = format!("plume blurred by {blur} voxels ({:.0} % occupied)", 100.0 * occupied);
+            eprintln!("{name} {res}^3: reference at {} spp", args.thick_ref_spp);
+            let dir = args.out.join(format!("reference_blur{blur}_{res}"));
+            let rf = reference::reference(&scene, SEED, args.thick_ref_spp, &dir)?;
+            for point in shadow_comparison(&scene, &rf, args.repeats) {
+                shadows.push(ShadowRow::new(name.clone(), res, scene.cameras.len(), "1-3", point));
+            }
         }
+    }
+    if !blurred.is_empty() {
+        let _ = writeln!(
+            summary,
+            "## Blurred plumes: the built-in one blurred, seen by all 5 cameras (defaults, medians)\n\n\
+             Blur 0 is the built-in plume itself seen by the 4 training cameras, the render of `timing.csv`.\n\n\
+             | res | blur (voxels at 64^3) | occupied | cameras | tracing / gathering / light-depth grids / camera (s) | total (s) |\n\
+             |---|---|---|---|---|---|"
+        );
+        for b in &blurred {
+            let _ = writeln!(
+                summary,
+                "| {} | {} | {:.0} % | {} | {:.3} / {:.3} / {:.3} / {:.3} | {:.3} |",
+                b.res,
+                b.blur_voxels,
+                100.0 * b.occupied,
+                b.cameras,
+                b.trace_s,
+                b.gather_s,
+                b.shadows_s,
+                b.camera_s,
+                b.total_s
+            );
+        }
+        summary.push('\n');
     }
     let _ = writeln!(
         summary,
         "## The lights' transmittance: light-depth grids against marched shadow rays\n\n\
-         Same photons in every row of a scene; the reference has the same orders. The thick plume is the \
-         built-in one blurred by 3 voxels: {:.0} % of the box occupied, seen by all 5 cameras.\n\n\
+         Same photons in every row of a scene; the reference has the same orders.\n\n\
          | scene | res | cameras | orders | shadows | voxels per node | time (s) | grids + camera rays (s) | block rel. RMSE | image-sum diff |\n\
-         |---|---|---|---|---|---|---|---|---|---|",
-        100.0 * thick_occupied
+         |---|---|---|---|---|---|---|---|---|---|"
     );
     for r in &shadows {
         let _ = writeln!(
@@ -289,22 +362,28 @@ fn run(mut args: Args) -> Result<()> {
     }
     summary.push('\n');
     write_rows(&args.out.join("shadows.csv"), &shadows)?;
-    write_rows(&args.out.join("timing.csv"), &timing)?;
-    write_rows(&args.out.join("sweep.csv"), &sweep)?;
-    line_chart(
-        &args.out.join("error_vs_time.svg"),
-        &Axes {
-            title: "Photon mapping: error against render time (photon count swept)",
-            x: "render time (s, 2 cores)",
-            y: "block relative RMSE vs path tracer (%)",
-            log_x: true,
-            log_y: true,
-        },
-        &series,
-    )?;
+    if !blurred.is_empty() {
+        write_rows(&args.out.join("blurred.csv"), &blurred)?;
+    }
+    if !args.res.is_empty() {
+        write_rows(&args.out.join("timing.csv"), &timing)?;
+        write_rows(&args.out.join("sweep.csv"), &sweep)?;
+        line_chart(
+            &args.out.join("error_vs_time.svg"),
+            &Axes {
+                title: "Photon mapping: error against render time (photon count swept)",
+                x: "render time (s, 2 cores)",
+                y: "block relative RMSE vs path tracer (%)",
+                log_x: true,
+                log_y: true,
+            },
+            &series,
+        )?;
+    }
     let _ = writeln!(
         summary,
-        "Regenerate: `cargo run --release --bin bench_render` ({:.0} s).",
+        "Regenerate: `cargo run --release --bin bench_render{}` ({:.0} s).",
+        command_options(),
         started.elapsed().as_secs_f64()
     );
     std::fs::write(args.out.join("summary.md"), &summary)?;
@@ -324,4 +403,14 @@ struct Manifest<'a> {
     settings: &'a Args,
     plume_seed: u64,
     reference_seed: u64,
+}
+
+/// This run's options as typed (` -- OPTIONS`, or nothing), for the summary's command.
+fn command_options() -> String {
+    let options: Vec<String> = std::env::args().skip(1).collect();
+    if options.is_empty() {
+        String::new()
+    } else {
+        format!(" -- {}", options.join(" "))
+    }
 }

@@ -178,6 +178,16 @@ fn benchmarks_run_at_smoke_size() {
         assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
         assert!(dir.join("summary.md").exists() && dir.join("manifest.json").exists());
     }
+    // Only the blurred plumes (and the built-in plume's timing row), as `results/bench_render_blurred/`.
+    let dir = std::env::temp_dir().join(format!("dualphoton-bench-blurred-{}", std::process::id()));
+    let out = Command::new(env!("CARGO_BIN_EXE_bench_render"))
+        .args(["--smoke", "--res", "--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows = std::fs::read_to_string(dir.join("blurred.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 4, "header, the built-in plume and two blurred plumes:\n{rows}");
+    assert!(!dir.join("sweep.csv").exists());
 }
 
 #[test]

@@ -89,13 +89,18 @@ pub fn two_light_blob(n: usize, g: f64, max_order: u32, res: usize) -> Scene {
     scene(blob(n), medium(0.9, g, max_order), lights, vec![look_at_origin(Vec3::new(0.0, 0.0, 2.2), res, 30.0)])
 }
 
-/// The built-in plume of `seed`, blurred by a Gaussian of 3 voxels (at
-/// 64^3; scaled with the resolution) and rescaled to the plume's maximum: a
-/// thicker, smoother smoke that fills about an eighth of the box (12 % at 64^3), for
-/// timing the renderer where the built-in plume is sparse.
-pub fn thick_plume(res: usize, seed: u64) -> Grid<f64> {
+/// The built-in plume of `seed`, blurred by a Gaussian of `blur` voxels
+/// (at 64^3; scaled with the resolution) and rescaled to the plume's
+/// maximum: thicker, smoother smoke, for timing the renderer where the
+/// built-in plume is sparse. A blur of 3 fills about an eighth of the box
+/// (12 % at 64^3), a blur of 5 about a quarter (25 %); 0 is the built-in
+/// plume itself.
+pub fn blurred_plume(res: usize, seed: u64, blur: f64) -> Grid<f64> {
     use crate::data::plume::{plume, CUTOFF, PLUME_MAX};
-    let mut g = crate::volume::blur::gaussian_blur(&plume(res, seed), 3.0 * res as f64 / 64.0);
+    if blur <= 0.0 {
+        return plume(res, seed);
+    }
+    let mut g = crate::volume::blur::gaussian_blur(&plume(res, seed), blur * res as f64 / 64.0);
     let scale = PLUME_MAX / g.max_value().max(f64::MIN_POSITIVE);
     g.data.iter_mut().for_each(|v| *v = if *v * scale < CUTOFF { 0.0 } else { *v * scale });
     g
