@@ -51,7 +51,7 @@ pub struct PriorFitArgs {
     #[arg(long, default_value_t = 1.0)]
     pub prior_refine_lr_final: f64,
     /// With a prior: the refinement's block edges (see --refine-blocks). 4 and 8 help on every plume
-    /// measured, most outside the training set (README, "Block terms"); `--prior-refine-blocks 0`: none.
+    /// measured, most outside the training set (`docs/prior_studies.md`, "Block terms"); `--prior-refine-blocks 0`: none.
     #[arg(long, value_delimiter = ',', default_values_t = [4, 8])]
     pub prior_refine_blocks: Vec<usize>,
     /// With a prior: the latent's gradient estimator (fwd-full: exact, 64 directions; rev-full: exact, reverse mode).

@@ -63,7 +63,7 @@ pub struct RefineSettings {
     /// this fraction of their start (1: constant). Adam moves a coordinate
     /// whose gradient is only noise by a random walk of about its step per
     /// update. Alone, smaller late steps did not lessen the haze in empty
-    /// voxels (README, "Where the rest of the misfit sits"); with block
+    /// voxels (`docs/fitting.md`, "Not the refinement's noise"); with block
     /// terms, whose steps move many voxels at once, they are what keeps the
     /// last iterate's images close (the paper's method's default, 0.1).
     pub lr_final: f64,
