@@ -36,7 +36,7 @@ struct Args {
     res: Vec<usize>,
     /// Lane counts K of the forward estimators, per resolution: all of
     /// them at the first resolution, only the largest at the others.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64")]
     lanes: Vec<usize>,
     /// Repeats per measurement (median reported).
     #[arg(long, default_value_t = 3)]
@@ -227,11 +227,11 @@ fn measure_res(args: &Args, res: usize, lanes: &[usize], rows: &mut Vec<Row>) ->
                         });
                         push(format!("{} ({} voxel directions)", Estimator::FwdFull.name(), coords.len()), k, coords.len(), t);
                     })*
-                    _ => return Err(Error(format!("--lanes: {k} is not one of 1, 2, 4, 8, 16"))),
+                    _ => return Err(Error(format!("--lanes: {k} is not one of {:?}", dualphoton::grad::LANES))),
                 }
             };
         }
-        at_lanes!(1, 2, 4, 8, 16);
+        at_lanes!(1, 2, 4, 8, 16, 32, 64);
     }
 
     // The exact latent gradient of the reconstruction's model: the decoder in dual numbers, then the renderer.

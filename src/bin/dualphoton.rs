@@ -109,7 +109,7 @@ enum Command {
         /// Seed of the estimator's own draws (pixel/path subsets, random directions).
         #[arg(long, default_value_t = 0)]
         estimator_seed: u64,
-        /// Directions per forward pass: 1, 2, 4, 8 or 16.
+        /// Directions per forward pass: 1, 2, 4, ..., 64.
         #[arg(long, default_value_t = 8)]
         lanes: usize,
         /// rev-sub: pixels differentiated per gradient (the paper: 1000).
@@ -308,7 +308,7 @@ fn run(command: Command) -> Result<()> {
             let opts =
                 GradOptions { estimator, lanes, pixels, paths, directions: Directions::Gaussian, seed: estimator_seed };
             if !LANES.contains(&lanes) {
-                return Err(Error(format!("--lanes: {lanes} is not one of 1, 2, 4, 8, 16")));
+                return Err(Error(format!("--lanes: {lanes} is not one of {LANES:?}")));
             }
             let listed = voxels.map(|v| parse_voxels(&v, scene.density.shape)).transpose()?;
             let targets = read_targets(&target, &scene)?;

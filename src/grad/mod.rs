@@ -20,7 +20,7 @@ pub mod forward;
 pub mod loss;
 pub mod reverse;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::render::frozen::Frozen;
 use crate::rng::{Purpose, Rng};
@@ -56,7 +56,21 @@ impl Estimator {
 }
 
 /// Lane counts a forward pass can carry (`DualSVec64<K>`).
-pub const LANES: [usize; 5] = [1, 2, 4, 8, 16];
+pub const LANES: [usize; 7] = [1, 2, 4, 8, 16, 32, 64];
+
+/// The lane count for `directions` directions with at most `most` lanes per
+/// pass: the fewest of [`LANES`] that carry them in as few passes as `most`
+/// does (a pass costs about a primal render plus a share per lane, so unused
+/// lanes are waste). Every lane computes the same operations whatever the
+/// count, so the derivatives are the same to the bit.
+pub fn lanes_for(directions: usize, most: usize) -> Result<usize> {
+    if !LANES.contains(&most) {
+        return Err(Error(format!("--lanes: {most} is not one of {LANES:?}")));
+    }
+    let passes = directions.div_ceil(most).max(1);
+    let per_pass = directions.div_ceil(passes);
+    Ok(LANES.into_iter().find(|&k| k >= per_pass).unwrap_or(most))
+}
 
 /// Settings of a voxel gradient.
 #[derive(Clone, Debug)]
@@ -98,7 +112,9 @@ macro_rules! with_lanes {
             4 => $f::<4>($($arg),*),
             8 => $f::<8>($($arg),*),
             16 => $f::<16>($($arg),*),
-            k => return Err($crate::error::Error(format!("--lanes: {k} is not one of 1, 2, 4, 8, 16"))),
+            32 => $f::<32>($($arg),*),
+            64 => $f::<64>($($arg),*),
+            k => return Err($crate::error::Error(format!("--lanes: {k} is not one of {:?}", $crate::grad::LANES))),
         }
     };
 }
@@ -150,5 +166,17 @@ mod tests {
             assert_eq!(clap_name.as_deref(), Some(e.name()));
             assert_eq!(serde_json::to_string(e).ok(), Some(format!("\"{}\"", e.name())));
         }
+    }
+
+    #[test]
+    fn lanes_carry_the_directions_in_the_fewest_passes_without_waste() {
+        assert_eq!(lanes_for(64, 64).unwrap(), 64);
+        assert_eq!(lanes_for(64, 16).unwrap(), 16);
+        assert_eq!(lanes_for(8, 64).unwrap(), 8);
+        assert_eq!(lanes_for(72, 64).unwrap(), 64);
+        assert_eq!(lanes_for(20, 16).unwrap(), 16);
+        assert_eq!(lanes_for(3, 64).unwrap(), 4);
+        assert_eq!(lanes_for(0, 4).unwrap(), 1);
+        assert!(lanes_for(8, 3).is_err());
     }
 }

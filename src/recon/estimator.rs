@@ -39,8 +39,9 @@ pub enum WeightDirections {
 pub struct EstimatorSettings {
     /// Which estimator.
     pub estimator: Estimator,
-    /// Dual lanes per forward pass (1, 2, 4, 8 or 16); `fwd-rand` draws this
-    /// many latent directions.
+    /// Dual lanes per forward pass, at most (1, 2, 4, ..., 64; `fwd-full`
+    /// takes no more than its directions need); `fwd-rand` draws this many
+    /// latent directions.
     pub lanes: usize,
     /// Differentiate the latent (forward estimators; reverse mode always gives both parts).
     pub latent: bool,
@@ -60,7 +61,7 @@ impl Default for EstimatorSettings {
     fn default() -> Self {
         EstimatorSettings {
             estimator: Estimator::FwdFull,
-            lanes: 16,
+            lanes: 64,
             latent: true,
             directions: Directions::Gaussian,
             weight_directions: 8,
