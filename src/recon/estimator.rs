@@ -40,8 +40,8 @@ pub struct EstimatorSettings {
     /// Which estimator.
     pub estimator: Estimator,
     /// Dual lanes per forward pass, at most (1, 2, 4, ..., 64; `fwd-full`
-    /// takes no more than its directions need); `fwd-rand` draws this many
-    /// latent directions.
+    /// takes no more than its directions need, and at most 16 on grids
+    /// above 64^3); `fwd-rand` draws this many latent directions.
     pub lanes: usize,
     /// Differentiate the latent (forward estimators; reverse mode always gives both parts).
     pub latent: bool,
