@@ -22,21 +22,8 @@ pub fn reverse(level: &Level, model: &Model, frozen: &Frozen, subset: Subset) ->
     model.decoder.backward(&model.z, &model.w, &model.mask, &g)
 }
 
-/// Wider lanes than 16 pay up to 64^3, where one pass of 64 gives the
-/// latent's gradient about 20 % sooner than four of 16, but not above: at
-/// 128^3 their memory traffic (3.2 GB against 1.5 GB) makes them slower
-/// (results/bench_grad). The bits are the same either way.
-const WIDE_LANES_UP_TO: usize = 64 * 64 * 64;
-
-/// Lanes per pass for `directions` through the decoder: at most `most`,
-/// and at most 16 on grids above [`WIDE_LANES_UP_TO`] voxels.
-fn lanes_through_decoder(model: &Model, directions: usize, most: usize) -> Result<usize> {
-    let voxels: usize = model.decoder_shape().iter().product();
-    lanes_for(directions, if voxels > WIDE_LANES_UP_TO { most.min(16) } else { most })
-}
-
 /// Exact `dL/dz` from all latent coordinates, at most `lanes` per forward
-/// pass ([`lanes_through_decoder`]: a 64-d latent at 64^3 takes one pass of 64 lanes).
+/// pass ([`lanes_for`]: a 64-d latent takes one pass of 64 lanes).
 pub fn latent_exact(level: &Level, model: &Model, frozen: &Frozen, lanes: usize) -> Result<Vec<f64>> {
     fn pass<const K: usize>(level: &Level, model: &Model, frozen: &Frozen) -> Vec<f64> {
         let n = model.z.len();
@@ -60,7 +47,7 @@ pub fn latent_exact(level: &Level, model: &Model, frozen: &Frozen, lanes: usize)
         }
         grad
     }
-    let lanes = lanes_through_decoder(model, model.z.len(), lanes)?;
+    let lanes = lanes_for(model.z.len(), lanes)?;
     Ok(crate::with_lanes!(lanes, pass(level, model, frozen)))
 }
 
@@ -214,7 +201,7 @@ fn weight_derivatives(
         }
         out
     }
-    let lanes = lanes_through_decoder(model, dirs.len(), lanes)?;
+    let lanes = lanes_for(dirs.len(), lanes)?;
     Ok(crate::with_lanes!(lanes, pass(level, model, frozen, dirs)))
 }
 
@@ -294,10 +281,6 @@ pub(crate) mod tests {
         (level, model, scene)
     }
 
-    /// On a tiny paper problem, the guided estimate is the orthogonal
-    /// projection of the exact gradient (reverse mode on the same frozen
-    /// estimator) onto the span of the guess and the random directions, so
-    /// it is a descent direction.
     /// One pass of 64 lanes gives the latent's gradient that four passes of
     /// 16 and eight of 8 do, to the bit: every lane computes the same.
     #[test]
@@ -319,6 +302,10 @@ pub(crate) mod tests {
         assert_eq!(along(2), along(64));
     }
 
+    /// On a tiny paper problem, the guided estimate is the orthogonal
+    /// projection of the exact gradient (reverse mode on the same frozen
+    /// estimator) onto the span of the guess and the random directions, so
+    /// it is a descent direction.
     #[test]
     fn guided_estimate_is_the_projection_of_the_gradient_onto_its_directions() {
         let (level, model, scene) = tiny();
