@@ -5,7 +5,8 @@
 //! left out.
 
 use super::Real;
-use num_dual::{Dual64, DualNum, DualSVec64};
+use nalgebra::SVector;
+use num_dual::{Derivative, Dual64, DualNum, DualSVec64};
 
 impl<const K: usize> Real for DualSVec64<K> {
     #[inline]
@@ -27,6 +28,25 @@ impl<const K: usize> Real for DualSVec64<K> {
     #[inline]
     fn is_exact_zero(&self) -> bool {
         self.re == 0.0 && self.eps.0.as_ref().is_none_or(|e| e.iter().all(|v| *v == 0.0))
+    }
+    /// The default's operations lane by lane, in place: `v * w` then `+=`,
+    /// where a value without tangent adds nothing and the first tangent is
+    /// taken as it is (num-dual's rules), so the bits are the default's.
+    #[inline]
+    fn weighted_sum8(values: [&Self; 8], weights: [f64; 8]) -> Self {
+        let mut re = values[0].re * weights[0];
+        for c in 1..8 {
+            re += values[c].re * weights[c];
+        }
+        let mut eps: Option<SVector<f64, K>> = None;
+        for (v, &w) in values.iter().zip(&weights) {
+            let Some(e) = v.eps.0.as_ref() else { continue };
+            match eps.as_mut() {
+                None => eps = Some(e * w),
+                Some(sum) => sum.as_mut_slice().iter_mut().zip(e.as_slice()).for_each(|(s, x)| *s += x * w),
+            }
+        }
+        DualSVec64::new(re, Derivative::new(eps))
     }
 }
 
@@ -67,6 +87,32 @@ pub fn with_tangents<const K: usize>(re: f64, eps: [f64; K]) -> DualSVec64<K> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The in-place trilinear sum gives the bits of the generic one, with
+    /// constants (no tangent) first, between and last.
+    #[test]
+    fn weighted_sum_in_place_is_the_generic_sum() {
+        let weights = [0.3, 0.1, 1e-9, 0.2, 0.15, 0.05, 0.7, 1.0 / 3.0];
+        for constants in [0b0000_0000u8, 0b0000_0011, 0b1010_0101, 0b1000_0000, 0b1111_1111] {
+            let values: Vec<DualSVec64<4>> = (0..8)
+                .map(|c| match constants >> c & 1 {
+                    1 => DualSVec64::from_re(0.1 * c as f64 - 0.25),
+                    _ => with_tangents::<4>(1.0 / (c + 1) as f64, [c as f64, -0.0, 1e-300, 1.0 / 7.0]),
+                })
+                .collect();
+            let refs: [&DualSVec64<4>; 8] = std::array::from_fn(|c| &values[c]);
+            let got = DualSVec64::<4>::weighted_sum8(refs, weights);
+            let mut want = values[0] * weights[0];
+            for c in 1..8 {
+                want += values[c] * weights[c];
+            }
+            assert_eq!(got.re.to_bits(), want.re.to_bits(), "constants {constants:08b}");
+            assert_eq!(got.eps.0.is_some(), want.eps.0.is_some(), "constants {constants:08b}");
+            for k in 0..4 {
+                assert_eq!(lane(&got, k).to_bits(), lane(&want, k).to_bits(), "constants {constants:08b}, lane {k}");
+            }
+        }
+    }
 
     #[test]
     fn vector_lanes_match_single_duals() {

@@ -43,12 +43,14 @@ pub trait Real:
     /// work multiplied by it can be left out without changing any result.
     fn is_exact_zero(&self) -> bool;
     /// `sum_c values[c] * weights[c]`: a trilinear lookup. Types may record
-    /// it as one operation (the tape does: one node with eight parents).
+    /// it as one operation (the tape does: one node with eight parents) or
+    /// sum in place (wide duals: copying eight of them cost more than the sum).
+    /// Every type sums in this order, so the primal is the same bits as `f64`'s.
     #[inline]
-    fn weighted_sum8(values: [Self; 8], weights: [f64; 8]) -> Self {
-        let mut s = values[0] * weights[0];
+    fn weighted_sum8(values: [&Self; 8], weights: [f64; 8]) -> Self {
+        let mut s = *values[0] * weights[0];
         for c in 1..8 {
-            s += values[c] * weights[c];
+            s += *values[c] * weights[c];
         }
         s
     }
@@ -65,7 +67,7 @@ pub trait Real:
             let s = self * h;
             (Self::cst(1.0) - s * 0.5 + s * s * (1.0 / 6.0)) * h
         } else {
-            (Self::cst(1.0) - (-(self * h)).exp()) / self
+            (Self::cst(1.0) - (self * -h).exp()) / self
         }
     }
 }

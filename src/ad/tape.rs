@@ -248,7 +248,7 @@ impl Real for Var {
         self.val == 0.0 && self.id == CONST
     }
     #[inline]
-    fn weighted_sum8(values: [Self; 8], weights: [f64; 8]) -> Self {
+    fn weighted_sum8(values: [&Self; 8], weights: [f64; 8]) -> Self {
         // Same operation order as the default, so the primal is bit-identical to f64's.
         let mut val = values[0].val * weights[0];
         for c in 1..8 {

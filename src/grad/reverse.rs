@@ -56,37 +56,64 @@ pub struct Reverse {
 /// Units per chunk: contributions are summed per chunk, then chunks in order.
 const CHUNK: usize = 32;
 
-/// Per-thread dense adjoints plus the list of touched leaves.
+/// Per-thread dense adjoints plus the touched leaves, kept by each thread
+/// from sweep to sweep: a fresh one per chunk cleared megabytes each time.
 struct Scratch {
     adjoint: Vec<f64>,
-    seen: Vec<bool>,
+    /// One bit per leaf: touched since the last drain.
+    seen: Vec<u64>,
     touched: Vec<u32>,
 }
 
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> =
+        const { std::cell::RefCell::new(Scratch { adjoint: Vec::new(), seen: Vec::new(), touched: Vec::new() }) };
+}
+
 impl Scratch {
-    fn new(leaves: usize) -> Self {
-        Scratch { adjoint: vec![0.0; leaves], seen: vec![false; leaves], touched: vec![] }
+    /// Room for `leaves` leaves (a drained scratch is all zero, whatever its size).
+    fn reserve(&mut self, leaves: usize) {
+        if self.adjoint.len() < leaves {
+            self.adjoint.resize(leaves, 0.0);
+            self.seen.resize(leaves.div_ceil(64), 0);
+        }
     }
 
     #[inline]
     fn add(&mut self, leaf: u32, a: f64) {
         let l = leaf as usize;
-        if !self.seen[l] {
-            self.seen[l] = true;
+        let (word, bit) = (l / 64, 1u64 << (l % 64));
+        if self.seen[word] & bit == 0 {
+            self.seen[word] |= bit;
             self.touched.push(leaf);
         }
         self.adjoint[l] += a;
     }
 
-    /// The touched leaves and their adjoints, in first-touch order; clears.
     /// The touched leaves' adjoints, in increasing leaf order (so that a
     /// merge can find a range of leaves by bisection), and a clean scratch.
+    /// Where the touched leaves are dense in their range, reading the bits
+    /// in order is cheaper than sorting them; both give the same list.
     fn drain(&mut self) -> Vec<(u32, f64)> {
-        self.touched.sort_unstable();
-        let out = self.touched.iter().map(|&l| (l, self.adjoint[l as usize])).collect();
-        for &l in &self.touched {
-            self.adjoint[l as usize] = 0.0;
-            self.seen[l as usize] = false;
+        let mut out = Vec::with_capacity(self.touched.len());
+        let Some(lo) = self.touched.iter().min() else { return out };
+        let hi = self.touched.iter().max().unwrap();
+        let words = (*lo as usize / 64)..(*hi as usize / 64 + 1);
+        let mut take = |l: usize, out: &mut Vec<(u32, f64)>| out.push((l as u32, std::mem::take(&mut self.adjoint[l])));
+        if words.len() <= 8 * self.touched.len() {
+            for word in words {
+                let mut bits = std::mem::take(&mut self.seen[word]);
+                while bits != 0 {
+                    take(word * 64 + bits.trailing_zeros() as usize, &mut out);
+                    bits &= bits - 1;
+                }
+            }
+        } else {
+            self.touched.sort_unstable();
+            for &l in &self.touched {
+                self.seen[l as usize / 64] = 0;
+                take(l as usize, &mut out);
+            }
         }
         self.touched.clear();
         out
@@ -116,9 +143,9 @@ fn draw_subset(n: usize, count: Option<usize>, rng: &mut Rng) -> (Vec<usize>, f6
 fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut Scratch, usize) + Sync) -> usize {
     let parts: Vec<(Vec<(u32, f64)>, usize)> = indices
         .par_chunks(CHUNK)
-        .map_init(
-            || Scratch::new(leaves),
-            |scratch, chunk| {
+        .map(|chunk| {
+            SCRATCH.with_borrow_mut(|scratch| {
+                scratch.reserve(leaves);
                 let mut peak = 0;
                 for &i in chunk {
                     tape::reset();
@@ -127,8 +154,8 @@ fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut
                     tape::reset();
                 }
                 (scratch.drain(), peak)
-            },
-        )
+            })
+        })
         .collect();
     merge(&parts.iter().map(|(part, _)| part.as_slice()).collect::<Vec<_>>(), total);
     parts.iter().map(|&(_, p)| p).max().unwrap_or(0)
@@ -225,14 +252,14 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
 
     // (1b) Light-depth adjoints -> density adjoints, back along each node's shadow ray.
     if let (Some(per_light), Some(light_depth)) = (depths, frozen.light_depth()) {
-        for l in (0..per_light.len()).filter(|&l| per_light[l].is_some()) {
+        for (l, primal) in per_light.iter().enumerate().filter_map(|(l, g)| g.as_ref().map(|g| (l, g))) {
             let first = first_depth + l * depth_nodes;
             let mut adjoint = total[first..first + depth_nodes].to_vec();
             light_depth.pad_adjoints(&mut adjoint);
             let active: Vec<usize> = light_depth.nodes().filter(|&v| adjoint[v] != 0.0).collect();
             sweep(&active, voxels, &mut total, |scratch, v| {
-                light_depth
-                    .adjoint(frozen.marcher(), density, l, v, adjoint[v], &mut |voxel, a| scratch.add(voxel as u32, a));
+                let add = &mut |voxel: usize, a| scratch.add(voxel as u32, a);
+                light_depth.adjoint(frozen.marcher(), density, l, v, primal.data[v], adjoint[v], add);
             });
         }
     }
@@ -277,4 +304,32 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     }
     total.truncate(voxels);
     Reverse { loss, grad: total, peak_tape_bytes: peak }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A drain lists every touched leaf once, in increasing order, with its
+    /// summed adjoint, and leaves the scratch clean: whether the leaves are
+    /// dense in their range (read from the bits) or sparse (sorted).
+    #[test]
+    fn a_drain_lists_touched_leaves_in_order_and_cleans_up() {
+        let mut scratch = Scratch { adjoint: vec![], seen: vec![], touched: vec![] };
+        scratch.reserve(1 << 20);
+        let dense: Vec<u32> = (0..300).map(|i| (i * 37 % 500) + 1000).collect();
+        let sparse = vec![1_000_000, 5, 640_001, 64, 63];
+        for leaves in [dense, sparse] {
+            for round in 0..2 {
+                for (n, &l) in leaves.iter().enumerate() {
+                    scratch.add(l, n as f64 + 0.5);
+                    scratch.add(l, 1.0);
+                }
+                let mut want: Vec<(u32, f64)> = leaves.iter().enumerate().map(|(n, &l)| (l, n as f64 + 1.5)).collect();
+                want.sort_by_key(|&(l, _)| l);
+                assert_eq!(scratch.drain(), want, "round {round}");
+                assert!(scratch.adjoint.iter().all(|&a| a == 0.0) && scratch.seen.iter().all(|&w| w == 0));
+            }
+        }
+    }
 }

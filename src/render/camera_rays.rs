@@ -95,7 +95,7 @@ impl<R: Real> CameraRays<'_, R> {
             let xi = (s.sample - s.start) / s.h;
             let u = if sigma > 0.0 { (-(-xi * sigma * z).ln_1p() / sigma).min(s.h) } else { xi * s.h };
             let x = ray.at(s.start + u);
-            let within = transmittance * (-((sigma_t - sigma) * u)).exp() * z;
+            let within = transmittance * ((sigma_t - sigma) * -u).exp() * z;
             if let Some(ms) = multiple {
                 let m = ms.at(&x);
                 if !m.is_exact_zero() {
@@ -113,14 +113,14 @@ impl<R: Real> CameraRays<'_, R> {
                     }
                     let mu = (-to_light / dist2.sqrt()).dot(&w_out);
                     let t = match self.depths.and_then(|d| d[l].as_ref()) {
-                        Some(depth) => (-depth.at(&x)).exp(),
+                        Some(depth) => (depth.at(&x) * -1.0).exp(),
                         None => self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter),
                     };
                     single += t * (hg_eval(self.medium.g, mu) * light.intensity / dist2);
                 }
                 radiance += within * sigma_t * single * self.medium.albedo;
             }
-            transmittance *= (-(sigma_t * s.h)).exp();
+            transmittance *= (sigma_t * -s.h).exp();
             transmittance_detached *= (-(sigma * s.h)).exp();
             transmittance_detached > T_MIN
         });

@@ -89,7 +89,9 @@ impl Marcher {
 
     /// Reverse mode of [`optical_depth`](Self::optical_depth): calls
     /// `add(voxel, adjoint * d depth / d rho_voxel)` for every lookup of
-    /// the same march, stopping where it stops.
+    /// the same march, stopping where it stops. `depth` is that march's
+    /// result: below the cutoff it never stopped early, and the steps need
+    /// not add up a depth of their own (half the lookups).
     #[allow(clippy::too_many_arguments)]
     pub fn optical_depth_adjoint(
         &self,
@@ -98,20 +100,24 @@ impl Marcher {
         ray: &Ray,
         t_max: f64,
         jitter: f64,
+        depth: f64,
         adjoint: f64,
         add: &mut impl FnMut(usize, f64),
     ) {
-        let mut depth = 0.0;
+        let stops_early = depth.is_nan() || depth >= DEPTH_CUTOFF;
+        let mut marched = 0.0;
         self.steps(ray, t_max, jitter, |s| {
             let x = ray.at(s.sample);
-            depth += density.at(&x) * (scale * s.h);
             if let Some(st) = density.stencil(&x) {
                 let a = adjoint * (scale * s.h);
                 for c in 0..8 {
                     add(st.index[c], a * st.weight[c]);
                 }
             }
-            depth < DEPTH_CUTOFF
+            if stops_early {
+                marched += density.at(&x) * (scale * s.h);
+            }
+            marched < DEPTH_CUTOFF
         });
     }
 
@@ -123,6 +129,6 @@ impl Marcher {
             return R::cst(1.0);
         }
         let ray = Ray { origin: *from, dir: d / dist };
-        (-self.optical_depth(density, scale, &ray, dist, jitter)).exp()
+        (self.optical_depth(density, scale, &ray, dist, jitter) * -1.0).exp()
     }
 }

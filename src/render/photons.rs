@@ -274,7 +274,7 @@ impl Tracer<'_> {
         let s = steps[m];
         let sigma_r = density.at(&ray.at(s.sample)) * scale;
         depth += sigma_r * (f.t - s.start);
-        sigma_r / f.sigma * (-(depth - f.depth)).exp()
+        sigma_r / f.sigma * ((depth - f.depth) * -1.0).exp()
     }
 
     /// A collision distance along `ray` drawn from `sigma_t T / (1 - T_all)`

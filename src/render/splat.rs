@@ -280,9 +280,10 @@ impl<R: Real> Estimate<'_, R> {
     #[inline]
     pub fn at(&self, p: &Vec3) -> R {
         let Some((index, weights)) = self.slots.trilinear(p) else { return R::cst(0.0) };
+        let zero = R::cst(0.0);
         let value = |n: usize| match self.slots.data[n] {
-            NO_SLOT => R::cst(0.0),
-            slot => self.values[slot as usize],
+            NO_SLOT => &zero,
+            slot => &self.values[slot as usize],
         };
         R::weighted_sum8(index.map(value), weights)
     }

@@ -164,10 +164,7 @@ impl<R: Real> Grid<R> {
     pub fn at(&self, p: &Vec3) -> R {
         let Some((index, weights)) = self.trilinear(p) else { return R::cst(0.0) };
         // Weights in f64 first: 8 products of R by f64, the cheapest form for duals.
-        let d = &self.data;
-        let values =
-            [d[index[0]], d[index[1]], d[index[2]], d[index[3]], d[index[4]], d[index[5]], d[index[6]], d[index[7]]];
-        R::weighted_sum8(values, weights)
+        R::weighted_sum8(index.map(|n| &self.data[n]), weights)
     }
 }
 
