@@ -48,6 +48,16 @@ impl<const K: usize> Real for DualSVec64<K> {
         }
         DualSVec64::new(re, Derivative::new(eps))
     }
+    /// Lane by lane `x * w` then `+=`, by num-dual's rules for a missing tangent.
+    #[inline]
+    fn add_scaled(&mut self, x: &Self, w: f64) {
+        self.re += x.re * w;
+        let Some(e) = x.eps.0.as_ref() else { return };
+        match self.eps.0.as_mut() {
+            None => self.eps = Derivative::some(e * w),
+            Some(sum) => sum.as_mut_slice().iter_mut().zip(e.as_slice()).for_each(|(s, x)| *s += x * w),
+        }
+    }
 }
 
 impl Real for Dual64 {

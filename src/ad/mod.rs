@@ -54,6 +54,12 @@ pub trait Real:
         }
         s
     }
+    /// `self += x * w`, with the operations of that expression (wide duals
+    /// do it in place, without a product to copy).
+    #[inline]
+    fn add_scaled(&mut self, x: &Self, w: f64) {
+        *self += *x * w;
+    }
     /// `(1 - e^{-self * h}) / self`: the integral of `e^{-self t}` over
     /// `t in [0, h]`. Finite for `self = 0` (value `h`) and for huge `self`.
     /// It divides `Self` by `Self`, whose primal num-dual computes as a

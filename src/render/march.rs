@@ -81,7 +81,7 @@ impl Marcher {
     pub fn optical_depth<R: Real>(&self, density: &Grid<R>, scale: f64, ray: &Ray, t_max: f64, jitter: f64) -> R {
         let mut depth = R::cst(0.0);
         self.steps(ray, t_max, jitter, |s| {
-            depth += density.at(&ray.at(s.sample)) * (scale * s.h);
+            depth.add_scaled(&density.at(&ray.at(s.sample)), scale * s.h);
             depth.re() < DEPTH_CUTOFF
         });
         depth

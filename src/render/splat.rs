@@ -235,6 +235,11 @@ impl SplatGeometry {
         for s in 0..n_slabs {
             first_slot[s + 1] += first_slot[s];
         }
+        // Per camera, every photon's phase towards it, once (a photon reaches one slab or more).
+        let phases: Vec<Vec<Option<f64>>> = cameras
+            .iter()
+            .map(|camera| photons.par_iter().with_min_len(1024).map(|p| phase_towards(p, camera, g)).collect())
+            .collect();
         let slabs: Vec<Vec<R>> = (0..cameras.len() * n_slabs)
             .into_par_iter()
             .map(|task| {
@@ -242,13 +247,13 @@ impl SplatGeometry {
                 let (first, last) = (s * SLAB * plane, ((s + 1) * SLAB).min(nz) * plane);
                 let mut slab = vec![R::cst(0.0); first_slot[s + 1] - first_slot[s]];
                 for &p in &reach[s] {
-                    let Some(phase) = phase_towards(&photons[p as usize], &cameras[cam], g) else {
+                    let Some(phase) = phases[cam][p as usize] else {
                         continue;
                     };
                     let value = power(p as usize) * (albedo * phase);
                     for (n, w) in kernel.deposits(p as usize) {
                         if (first..last).contains(&n) {
-                            slab[self.slot(n) - first_slot[s]] += value * w;
+                            slab[self.slot(n) - first_slot[s]].add_scaled(&value, w);
                         }
                     }
                 }
