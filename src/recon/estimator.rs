@@ -40,8 +40,9 @@ pub struct EstimatorSettings {
     /// Which estimator.
     pub estimator: Estimator,
     /// Dual lanes per forward pass, at most (1, 2, 4, ..., 64; `fwd-full`
-    /// takes no more than its directions need, and at most 16 on grids
-    /// above 64^3); `fwd-rand` draws this many latent directions.
+    /// takes no more than its directions need, and at most
+    /// [`LANES_ABOVE_64_CUBED`] on grids above 64^3); `fwd-rand` draws
+    /// this many latent directions.
     pub lanes: usize,
     /// Differentiate the latent (forward estimators; reverse mode always gives both parts).
     pub latent: bool,
@@ -108,11 +109,14 @@ pub struct ParamGradient {
     pub weights: Entries,
 }
 
-/// Wider lanes than 16 pay up to 64^3, where one pass of 64 gives the
-/// latent's gradient about 20 % sooner than four of 16, but not above: at
-/// 128^3 their memory traffic (3.2 GB against 1.5 GB) makes them slower
-/// (results/bench_grad). The bits are the same either way.
+/// Up to 64^3 one pass of 64 lanes gives the latent's gradient soonest
+/// (2.7 s against 3.3 s with 32 and 4.7 s with 16); at 128^3, 32 lanes do
+/// (8.7 s against 9.8 s with 64, whose memory traffic is 3 GB, and 11.4 s
+/// with 16; results/bench_grad at 9cfa4fa). The bits are the same either way.
 const WIDE_LANES_UP_TO: usize = 64 * 64 * 64;
+
+/// Most lanes per forward pass on grids above [`WIDE_LANES_UP_TO`] voxels.
+pub const LANES_ABOVE_64_CUBED: usize = 32;
 
 /// The gradient of `level`'s image loss with respect to `model`'s latent
 /// and weights on the frozen estimator, by `settings`. `update` is the
@@ -143,7 +147,7 @@ pub fn parameter_gradient(
         }
         Estimator::FwdFull => {
             let voxels: usize = model.decoder_shape().iter().product();
-            let lanes = if voxels > WIDE_LANES_UP_TO { lanes.min(16) } else { lanes };
+            let lanes = if voxels > WIDE_LANES_UP_TO { lanes.min(LANES_ABOVE_64_CUBED) } else { lanes };
             let latent = if s.latent {
                 dense(param_grad::latent_exact(level, model, frozen, lanes))?
             } else {
