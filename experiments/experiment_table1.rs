@@ -23,6 +23,9 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// The learned prior the main job fits beside the paper's method (it decodes 64^3 grids).
+const DEFAULT_PRIOR: &str = "models/plume64";
+
 /// The run's settings (after `--smoke`); they open its manifest.
 #[derive(Parser, Serialize)]
 #[command(
@@ -54,8 +57,8 @@ struct Args {
     #[arg(long, default_value_t = 8)]
     fit_spp: u32,
     /// The learned prior reconstructed beside the paper's method: its directory, or `none` (the paper's
-    /// method only).
-    #[arg(long, default_value = "models/plume64")]
+    /// method only). The built-in one decodes 64^3 grids; at another --res the job runs the paper's method only.
+    #[arg(long, default_value = DEFAULT_PRIOR)]
     prior: String,
     #[command(flatten)]
     prior_fit: PriorFitArgs,
@@ -172,8 +175,15 @@ fn run(mut args: Args) -> Result<()> {
         }
         dir => {
             let p = Prior::load(std::path::Path::new(dir))?;
-            p.check_grid(scene.density.shape)?;
-            Some(p)
+            match p.check_grid(scene.density.shape) {
+                Ok(()) => Some(p),
+                // The built-in prior decodes 64^3: at another --res the job is the paper's method alone.
+                Err(e) if dir == DEFAULT_PRIOR => {
+                    eprintln!("{e}; the paper's method only (--prior none says so)");
+                    None
+                }
+                Err(e) => return Err(e),
+            }
         }
     };
     let fit_settings = FitQualitySettings { photons: args.fit_photons, spp: args.fit_spp, ..Default::default() };
