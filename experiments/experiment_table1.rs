@@ -252,7 +252,7 @@ fn run(mut args: Args) -> Result<()> {
         let _ = writeln!(md, "| {name} | {} | {target} |", cell(f));
     }
     let fit = &args.paper_fit;
-    let trained = r.log.iter().filter(|row| row.iteration < fit.iterations).count();
+    let trained = r.trained;
     let _ = writeln!(
         md,
         "\nPaper's method: estimator `{}`, {n_train} training cameras, {} updates{}, then {} per-voxel refinement updates{} (reverse mode), {} photons and {} spp per update, decoder: {} parameters, latent 64.",
