@@ -5,7 +5,7 @@
 //! left out.
 
 use super::Real;
-use nalgebra::SVector;
+use nalgebra::{Const, U1};
 use num_dual::{Derivative, Dual64, DualNum, DualSVec64};
 
 impl<const K: usize> Real for DualSVec64<K> {
@@ -38,25 +38,28 @@ impl<const K: usize> Real for DualSVec64<K> {
         for c in 1..8 {
             re += values[c].re * weights[c];
         }
-        let mut eps: Option<SVector<f64, K>> = None;
+        let mut eps = Derivative::none();
         for (v, &w) in values.iter().zip(&weights) {
-            let Some(e) = v.eps.0.as_ref() else { continue };
-            match eps.as_mut() {
-                None => eps = Some(e * w),
-                Some(sum) => sum.as_mut_slice().iter_mut().zip(e.as_slice()).for_each(|(s, x)| *s += x * w),
-            }
+            add_tangent(&mut eps, &v.eps, w);
         }
-        DualSVec64::new(re, Derivative::new(eps))
+        DualSVec64::new(re, eps)
     }
     /// Lane by lane `x * w` then `+=`, by num-dual's rules for a missing tangent.
     #[inline]
     fn add_scaled(&mut self, x: &Self, w: f64) {
         self.re += x.re * w;
-        let Some(e) = x.eps.0.as_ref() else { return };
-        match self.eps.0.as_mut() {
-            None => self.eps = Derivative::some(e * w),
-            Some(sum) => sum.as_mut_slice().iter_mut().zip(e.as_slice()).for_each(|(s, x)| *s += x * w),
-        }
+        add_tangent(&mut self.eps, &x.eps, w);
+    }
+}
+
+/// `sum += x * w` on tangents, in place, as num-dual's `+=` of a product
+/// does it: a missing `x` adds nothing, a missing `sum` becomes `x * w`.
+#[inline]
+fn add_tangent<const K: usize>(sum: &mut Derivative<f64, Const<K>, U1>, x: &Derivative<f64, Const<K>, U1>, w: f64) {
+    let Some(e) = x.0.as_ref() else { return };
+    match sum.0.as_mut() {
+        None => *sum = Derivative::some(e * w),
+        Some(s) => s.as_mut_slice().iter_mut().zip(e.as_slice()).for_each(|(s, x)| *s += x * w),
     }
 }
 

@@ -66,11 +66,15 @@ struct Scratch {
 }
 
 thread_local! {
-    static SCRATCH: std::cell::RefCell<Scratch> =
-        const { std::cell::RefCell::new(Scratch { adjoint: Vec::new(), seen: Vec::new(), touched: Vec::new() }) };
+    static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new(Scratch::new()) };
 }
 
 impl Scratch {
+    /// An empty scratch, with room for no leaf yet.
+    const fn new() -> Self {
+        Scratch { adjoint: Vec::new(), seen: Vec::new(), touched: Vec::new() }
+    }
+
     /// Room for `leaves` leaves (a drained scratch is all zero, whatever its size).
     fn reserve(&mut self, leaves: usize) {
         if self.adjoint.len() < leaves {
@@ -315,7 +319,7 @@ mod tests {
     /// dense in their range (read from the bits) or sparse (sorted).
     #[test]
     fn a_drain_lists_touched_leaves_in_order_and_cleans_up() {
-        let mut scratch = Scratch { adjoint: vec![], seen: vec![], touched: vec![] };
+        let mut scratch = Scratch::new();
         scratch.reserve(1 << 20);
         let dense: Vec<u32> = (0..300).map(|i| (i * 37 % 500) + 1000).collect();
         let sparse = vec![1_000_000, 5, 640_001, 64, 63];
