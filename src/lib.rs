@@ -22,6 +22,7 @@ pub mod io;
 pub mod math;
 pub mod model;
 pub mod optim;
+pub mod par;
 pub mod prior;
 pub mod process;
 pub mod recon;

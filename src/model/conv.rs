@@ -14,6 +14,7 @@
 
 use super::layout::Layout;
 use crate::ad::Real;
+use crate::par;
 use rayon::prelude::*;
 
 /// Negative slope of the LeakyReLU after the linear layer and every
@@ -180,7 +181,7 @@ where
 {
     let (n, c_in, c_out) = (conv.n, conv.c_in, conv.c_out);
     let m = 2 * n;
-    let mut out = vec![R::cst(0.0); lout.rows() * c_out];
+    let mut out = par::filled(lout.rows() * c_out, R::cst(0.0));
     lout.slabs(&mut out, c_out).into_par_iter().for_each(|(oz, part)| {
         let (tz, nz) = taps(oz, n);
         for (yx, row) in lout.in_slab(oz).zip(part.chunks_exact_mut(c_out)) {

@@ -12,6 +12,7 @@ use super::photons::{emitters, Emitter, Flights, Photon, Tracer};
 use super::splat::{Estimate, Kernel, SplatGeometry};
 use crate::ad::Real;
 use crate::image::Image;
+use crate::par;
 use crate::scene::Scene;
 use crate::volume::majorant::MAJORANT_BLOCK;
 use crate::volume::{Grid, Majorant};
@@ -270,7 +271,7 @@ impl<'a> Frozen<'a> {
 
     /// Powers of all stored photons as functions of `density` (path replay).
     pub fn photon_powers<R: Real>(&self, density: &Grid<R>) -> Vec<R> {
-        const CHUNK: usize = 512;
+        const CHUNK: usize = 256;
         let parts: Vec<Vec<R>> = (0..self.paths().div_ceil(CHUNK))
             .into_par_iter()
             .map(|c| {
@@ -284,7 +285,7 @@ impl<'a> Frozen<'a> {
                 powers
             })
             .collect();
-        parts.into_iter().flatten().collect()
+        par::concat(parts)
     }
 
     /// The images of the first `cameras` cameras as functions of `density`,

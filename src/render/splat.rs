@@ -19,6 +19,7 @@
 use super::photons::Photon;
 use crate::ad::Real;
 use crate::math::Vec3;
+use crate::par;
 use crate::volume::phase::hg_eval;
 use crate::volume::Grid;
 use rayon::prelude::*;
@@ -174,15 +175,16 @@ impl SplatGeometry {
                 (counts, nodes, weights)
             })
             .collect();
-        let mut kernel = Kernel { start: vec![0], ..Default::default() };
-        for (counts, nodes, weights) in parts {
+        let mut start = vec![0];
+        let (mut nodes, mut weights) = (Vec::with_capacity(parts.len()), Vec::with_capacity(parts.len()));
+        for (counts, n, w) in parts {
             for c in counts {
-                kernel.start.push(kernel.start.last().unwrap() + c);
+                start.push(start.last().unwrap() + c);
             }
-            kernel.nodes.extend(nodes);
-            kernel.weights.extend(weights);
+            nodes.push(n);
+            weights.push(w);
         }
-        kernel
+        Kernel { start, nodes: par::concat(nodes), weights: par::concat(weights) }
     }
 
     /// For each camera position, the in-scattered radiance per unit length
@@ -214,17 +216,24 @@ impl SplatGeometry {
         let plane = ny * nx;
         let n_slabs = nz.div_ceil(SLAB);
         // Photons whose deposits reach each slab, in photon order.
-        let mut reach: Vec<Vec<u32>> = vec![vec![]; n_slabs];
-        for p in 0..photons.len() {
-            let nodes = &kernel.nodes[kernel.start[p]..kernel.start[p + 1]];
-            let (lo, hi) = nodes.iter().fold((usize::MAX, 0), |(lo, hi), &n| {
-                let s = n as usize / plane / SLAB;
-                (lo.min(s), hi.max(s))
-            });
-            for slab in reach.iter_mut().take(hi + 1).skip(lo) {
-                slab.push(p as u32);
-            }
-        }
+        let slab_range: Vec<(usize, usize)> = (0..photons.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|p| {
+                let nodes = &kernel.nodes[kernel.start[p]..kernel.start[p + 1]];
+                nodes.iter().fold((usize::MAX, 0), |(lo, hi), &n| {
+                    let s = n as usize / plane / SLAB;
+                    (lo.min(s), hi.max(s))
+                })
+            })
+            .collect();
+        let reach: Vec<Vec<u32>> = (0..n_slabs)
+            .into_par_iter()
+            .map(|s| {
+                let reaches = |p: &usize| slab_range[*p].0 <= s && s <= slab_range[*p].1;
+                (0..photons.len()).filter(reaches).map(|p| p as u32).collect()
+            })
+            .collect();
         // The slots of slab s are first_slot[s]..first_slot[s + 1] (slots follow node order).
         let mut first_slot = vec![0usize; n_slabs + 1];
         for (n, &slot) in self.slots.data.iter().enumerate() {
@@ -260,9 +269,9 @@ impl SplatGeometry {
                 slab
             })
             .collect();
-        slabs
-            .chunks(n_slabs)
-            .map(|cam_slabs| Estimate { slots: &self.slots, values: cam_slabs.iter().flatten().copied().collect() })
+        let mut slabs = slabs.into_iter();
+        (0..cameras.len())
+            .map(|_| Estimate { slots: &self.slots, values: par::concat(slabs.by_ref().take(n_slabs).collect()) })
             .collect()
     }
 }

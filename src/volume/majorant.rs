@@ -3,6 +3,7 @@
 
 use super::grid::Grid;
 use crate::math::{Ray, Vec3};
+use rayon::prelude::*;
 
 /// Voxels per majorant block edge, for every renderer: small enough to skip
 /// the plume's empty surroundings, large enough that the block walk is cheap.
@@ -34,7 +35,7 @@ impl Majorant {
         // Points in a block read voxels one beyond it on each side (trilinear reach).
         let range = |m: usize, len: usize| (m * block).saturating_sub(1)..((m + 1) * block + 1).min(len);
         let mut max = vec![0.0; n[0] * n[1] * n[2]];
-        for bz in 0..n[2] {
+        max.par_chunks_mut(n[0] * n[1]).enumerate().for_each(|(bz, layer)| {
             for by in 0..n[1] {
                 for bx in 0..n[0] {
                     let mut m = 0.0f64;
@@ -45,10 +46,10 @@ impl Majorant {
                             }
                         }
                     }
-                    max[(bz * n[1] + by) * n[0] + bx] = m;
+                    layer[by * n[0] + bx] = m;
                 }
             }
-        }
+        });
         let super_n = n.map(|b| b.div_ceil(SUPER));
         let mut super_state = Vec::with_capacity(super_n.iter().product());
         for sz in 0..super_n[2] {
