@@ -43,11 +43,8 @@ mod tests {
     #[test]
     fn concat_is_the_serial_join() {
         for sizes in [vec![], vec![0, 0], vec![3, 0, 5], vec![20_000, 0, 1, 30_000, 7]] {
-            let parts: Vec<Vec<u64>> = sizes
-                .iter()
-                .enumerate()
-                .map(|(p, &n)| (0..n as u64).map(|i| i * 31 + p as u64).collect())
-                .collect();
+            let parts: Vec<Vec<u64>> =
+                sizes.iter().enumerate().map(|(p, &n)| (0..n as u64).map(|i| i * 31 + p as u64).collect()).collect();
             let serial: Vec<u64> = parts.iter().flatten().copied().collect();
             assert_eq!(concat(parts), serial, "sizes {sizes:?}");
         }
