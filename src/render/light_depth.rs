@@ -181,24 +181,31 @@ fn is_pad(shape: [usize; 3], v: usize) -> bool {
     k == 0 || k == nz - 1 || j == 0 || j == ny - 1 || i == 0 || i == nx - 1
 }
 
-/// Calls `visit(pad, [(source, weight); 2])` for every pad node along
-/// `axis` (0 = x) of a padded grid of `shape`: the pad's value is the
-/// weighted sum of the sources, the linear extrapolation `2 a - b` of the
-/// two nodes inside it (a constant `a` where only one node is inside).
-fn for_each_pad(shape: [usize; 3], axis: usize, mut visit: impl FnMut(usize, [(usize, f64); 2])) {
-    let [nz, ny, nx] = shape;
-    let stride = [1, nx, nx * ny][axis];
+/// How the pads across `axis` (0 = x) of a padded grid of `shape`
+/// extrapolate: the axis' stride and length, and per pad its two sources
+/// as (slices inward from the pad's face, weight): the linear
+/// extrapolation `2 a - b` of the two nodes inside it (a constant `a`
+/// where only one node is inside).
+fn pad_rule(shape: [usize; 3], axis: usize) -> (usize, usize, [(usize, f64); 2]) {
+    let [_, ny, nx] = shape;
     let n = shape[2 - axis];
-    let weights = if n >= 4 { [2.0, -1.0] } else { [1.0, 0.0] };
+    debug_assert!(n >= 3, "a padded axis has an inner node");
+    let sources = if n >= 4 { [(1, 2.0), (2, -1.0)] } else { [(1, 1.0), (1, 0.0)] };
+    ([1, nx, nx * ny][axis], n, sources)
+}
+
+/// Calls `visit(pad, [(source, weight); 2])` for every pad node along
+/// `axis` of a padded grid of `shape` ([`pad_rule`]).
+fn for_each_pad(shape: [usize; 3], axis: usize, mut visit: impl FnMut(usize, [(usize, f64); 2])) {
+    let (stride, n, sources) = pad_rule(shape, axis);
     // Only the two faces across `axis`, in increasing flat order (the order
     // in which reverse mode adds to a node is that of the forward pass).
-    for outer in 0..nz * ny * nx / (stride * n) {
+    for outer in 0..shape.iter().product::<usize>() / (stride * n) {
         for (c, inward) in [(0, 1isize), (n - 1, -1)] {
             for rest in 0..stride {
                 let v = outer * stride * n + c * stride + rest;
-                let at = |d: isize| (v as isize + d * inward * stride as isize) as usize;
-                let second = if n >= 4 { at(2) } else { at(1) };
-                visit(v, [(at(1), weights[0]), (second, weights[1])]);
+                let at = |d: usize| (v as isize + d as isize * inward * stride as isize) as usize;
+                visit(v, sources.map(|(d, w)| (at(d), w)));
             }
         }
     }
@@ -209,19 +216,15 @@ fn for_each_pad(shape: [usize; 3], axis: usize, mut visit: impl FnMut(usize, [(u
 /// the values [`for_each_pad`] would write, computed in parallel (the pads
 /// across one axis read no pad across that axis).
 fn extrapolate_pads<R: Real>(shape: [usize; 3], data: &mut [R]) {
-    let [_, ny, nx] = shape;
     for axis in [0, 1, 2] {
-        let stride = [1, nx, nx * ny][axis];
-        let n = shape[2 - axis];
-        debug_assert!(n >= 3, "a padded axis has an inner node");
-        let (wa, wb) = if n >= 4 { (2.0, -1.0) } else { (1.0, 0.0) };
-        let (second_in, second_out) = if n >= 4 { (2, n - 3) } else { (1, n - 2) };
+        let (stride, n, [(da, wa), (db, wb)]) = pad_rule(shape, axis);
         // Each block of `n` slices of `stride` nodes holds its two pad slices, 0 and n - 1.
         data.par_chunks_mut(stride * n).for_each(|block| {
             let (first, rest) = block.split_at_mut(stride);
-            fill_face(first, &rest[..stride], &rest[(second_in - 1) * stride..second_in * stride], wa, wb);
+            fill_face(first, &rest[(da - 1) * stride..da * stride], &rest[(db - 1) * stride..db * stride], wa, wb);
             let (rest, last) = block.split_at_mut((n - 1) * stride);
-            fill_face(last, &rest[(n - 2) * stride..], &rest[second_out * stride..(second_out + 1) * stride], wa, wb);
+            let (a, b) = (n - 1 - da, n - 1 - db);
+            fill_face(last, &rest[a * stride..(a + 1) * stride], &rest[b * stride..(b + 1) * stride], wa, wb);
         });
     }
 }
