@@ -32,33 +32,25 @@ impl Decoder {
 
     /// The base grid, then every convolution's output, post-activation and
     /// stored in `layouts` (the last is the density at the mask's voxels).
-    fn activations<R: Real>(&self, z: &[R], w: &[R], layouts: &[Layout]) -> Vec<Vec<R>> {
+    fn activations<R: Real>(&self, z: &[R], w: Weights<'_, R>, layouts: &[Layout]) -> Vec<Vec<R>> {
         let n0 = BASE.pow(3) * self.c0;
-        let (lw, lb) = w.split_at(self.latent * n0);
-        let base: Vec<R> = lw
-            .chunks_exact(self.latent)
-            .zip(lb)
-            .map(|(row, &b)| {
-                let mut s = b;
-                for (&wv, &zv) in row.iter().zip(z) {
-                    s += wv * zv;
-                }
-                Act::Leaky.apply(s)
-            })
-            .collect();
-        // Weights without tangents (the usual case when differentiating
-        // with respect to z only) are used as plain numbers. `x - re(x)` is
-        // an exact zero iff x has no tangent (stops at the first that has).
-        let plain: Option<Vec<f64>> =
-            w.iter().all(|x| (*x - R::cst(x.re())).is_exact_zero()).then(|| w.iter().map(R::re).collect());
+        let split = self.latent * n0;
+        let base = match w {
+            Weights::Plain(w) => base_layer(z, &w[..split], &w[split..split + n0], R::cst),
+            Weights::Carrying(w) => base_layer(z, &w[..split], &w[split..split + n0], |b| b),
+        };
         let mut acts = vec![base];
         for (l, c) in self.convs.iter().enumerate() {
             let act = if l + 1 == self.convs.len() { self.out_act() } else { Act::Leaky };
-            let bias = &w[c.b_off..c.b_off + c.c_out];
             let (lin, lout) = (&layouts[l], &layouts[l + 1]);
-            let next = match &plain {
-                Some(wf) => conv_forward(c, c.weights(wf), bias, &acts[l], lin, lout, act),
-                None => conv_forward(c, c.weights(w), bias, &acts[l], lin, lout, act),
+            let next = match w {
+                Weights::Plain(w) => {
+                    let bias: Vec<R> = w[c.b_off..c.b_off + c.c_out].iter().map(|&b| R::cst(b)).collect();
+                    conv_forward(c, c.weights(w), &bias, &acts[l], lin, lout, act)
+                }
+                Weights::Carrying(w) => {
+                    conv_forward(c, c.weights(w), &w[c.b_off..c.b_off + c.c_out], &acts[l], lin, lout, act)
+                }
             };
             acts.push(next);
         }
@@ -84,8 +76,32 @@ impl Decoder {
     /// ```
     pub fn forward<R: Real>(&self, z: &[R], w: &[R], mask: &[bool]) -> Vec<R> {
         self.check(z.len(), w.len(), mask.len());
+        let plain = plain_values(w);
         let layouts = self.layouts(mask);
-        let acts = self.activations(z, w, &layouts);
+        let acts = self.activations(z, Weights::of(w, plain.as_deref()), &layouts);
+        self.dense(&layouts, &acts)
+    }
+
+    /// [`Decoder::forward`] with weights that carry no derivative, given
+    /// as plain numbers: the same values, without a copy of the weights in
+    /// `R` (for 64-lane duals and a large decoder, hundreds of megabytes).
+    ///
+    /// ```
+    /// use dualphoton::model::Decoder;
+    /// use num_dual::Dual64;
+    /// let d = Decoder::paper_small(8)?;
+    /// let (z, w) = (d.init_latent(1), d.init(1));
+    /// let mask = vec![true; 512];
+    /// let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::new(v, 1.0)).collect();
+    /// let wd: Vec<Dual64> = w.iter().map(|&v| Dual64::from(v)).collect();
+    /// let (a, b) = (d.forward_fixed_weights(&zd, &w, &mask), d.forward(&zd, &wd, &mask));
+    /// assert!(a.iter().zip(&b).all(|(a, b)| a.re == b.re && a.eps == b.eps));
+    /// # Ok::<(), dualphoton::error::Error>(())
+    /// ```
+    pub fn forward_fixed_weights<R: Real>(&self, z: &[R], w: &[f64], mask: &[bool]) -> Vec<R> {
+        self.check(z.len(), w.len(), mask.len());
+        let layouts = self.layouts(mask);
+        let acts = self.activations(z, Weights::Plain(w), &layouts);
         self.dense(&layouts, &acts)
     }
 
@@ -118,8 +134,9 @@ impl Decoder {
     /// ```
     pub fn forward_masked<R: Real>(&self, z: &[R], w: &[R], mask: &[bool]) -> Vec<R> {
         self.check(z.len(), w.len(), mask.len());
+        let plain = plain_values(w);
         let layouts = self.layouts(mask);
-        let mut acts = self.activations(z, w, &layouts);
+        let mut acts = self.activations(z, Weights::of(w, plain.as_deref()), &layouts);
         acts.pop().unwrap_or_default()
     }
 
@@ -143,7 +160,7 @@ impl Decoder {
     pub fn backward(&self, z: &[f64], w: &[f64], mask: &[bool], grad_out: &[f64]) -> (Vec<f64>, Vec<f64>) {
         self.check(z.len(), w.len(), mask.len());
         let layouts = self.layouts(mask);
-        let acts = self.activations(z, w, &layouts);
+        let acts = self.activations(z, Weights::Plain(w), &layouts);
         self.backward_from(z, w, mask, &layouts, &acts, grad_out)
     }
 
@@ -170,7 +187,7 @@ impl Decoder {
     ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         self.check(z.len(), w.len(), mask.len());
         let layouts = self.layouts(mask);
-        let acts = self.activations(z, w, &layouts);
+        let acts = self.activations(z, Weights::Plain(w), &layouts);
         let density = self.dense(&layouts, &acts);
         let grad_out = grad_of(&density);
         let (gz, gw) = self.backward_from(z, w, mask, &layouts, &acts, &grad_out);
@@ -218,6 +235,50 @@ impl Decoder {
         }
         (gz, gw)
     }
+}
+
+/// The decoder weights as a forward pass reads them.
+#[derive(Clone, Copy)]
+enum Weights<'a, R> {
+    /// Without derivatives (the usual case when differentiating with
+    /// respect to the latent only): plain numbers, cheaper to multiply.
+    Plain(&'a [f64]),
+    /// Carrying tangents (directional derivatives in weight space).
+    Carrying(&'a [R]),
+}
+
+impl<'a, R> Weights<'a, R> {
+    /// `w` as plain numbers where [`plain_values`] found them so.
+    fn of(w: &'a [R], plain: Option<&'a [f64]>) -> Self {
+        plain.map_or(Weights::Carrying(w), Weights::Plain)
+    }
+}
+
+/// The primal values of `w` if no weight carries a derivative (`x -
+/// re(x)` is an exact zero iff `x` has no tangent).
+fn plain_values<R: Real>(w: &[R]) -> Option<Vec<f64>> {
+    w.par_iter().all(|x| (*x - R::cst(x.re())).is_exact_zero()).then(|| w.par_iter().map(R::re).collect())
+}
+
+/// The linear layer from the latent to the base grid, LeakyReLU'd: output
+/// `j` is `bias_j + sum_k weights[j, k] z_k`, rows in parallel (each the
+/// same sum in the same order, whatever the threads).
+fn base_layer<R, W>(z: &[R], weights: &[W], biases: &[W], lift: impl Fn(W) -> R + Sync) -> Vec<R>
+where
+    R: Real + std::ops::Mul<W, Output = R>,
+    W: Copy + Send + Sync,
+{
+    weights
+        .par_chunks_exact(z.len())
+        .zip(biases)
+        .map(|(row, &b)| {
+            let mut s = lift(b);
+            for (&wv, &zv) in row.iter().zip(z) {
+                s += zv * wv;
+            }
+            Act::Leaky.apply(s)
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -307,6 +368,24 @@ mod tests {
                     .fold(0.0f64, f64::max);
                 eprintln!("res {} on_z {on_z} i {i}: largest relative error {worst:.2e}", d.res);
                 assert!(worst <= 1e-6, "res {} on_z {on_z} i {i}: relative error {worst}", d.res);
+            }
+        }
+    }
+
+    #[test]
+    fn fixed_weights_give_the_bits_of_tangent_free_dual_weights() {
+        for (d, mask) in cases() {
+            let (z, w) = (d.init_latent(21), d.init(21));
+            let dirs = normals(22, 4 * z.len());
+            let zd: Vec<DualSVec64<4>> =
+                (0..z.len()).map(|i| with_tangents(z[i], std::array::from_fn(|k| dirs[k * z.len() + i]))).collect();
+            let wd: Vec<DualSVec64<4>> = w.iter().map(|&v| DualSVec64::from_re(v)).collect();
+            let (fixed, dual) = (d.forward_fixed_weights(&zd, &w, &mask), d.forward(&zd, &wd, &mask));
+            for (a, b) in fixed.iter().zip(&dual) {
+                assert_eq!(a.re.to_bits(), b.re.to_bits());
+                for k in 0..4 {
+                    assert_eq!(lane(a, k).to_bits(), lane(b, k).to_bits(), "res {} lane {k}", d.res);
+                }
             }
         }
     }

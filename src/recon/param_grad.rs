@@ -14,6 +14,7 @@ use crate::render::frozen::Frozen;
 use crate::rng::Rng;
 use crate::volume::Grid;
 use num_dual::DualSVec64;
+use rayon::prelude::*;
 
 /// `(dL/dz, dL/dw)` by reverse mode on `subset` (exact for the full set, unbiased otherwise).
 pub fn reverse(level: &Level, model: &Model, frozen: &Frozen, subset: Subset) -> (Vec<f64>, Vec<f64>) {
@@ -27,7 +28,6 @@ pub fn reverse(level: &Level, model: &Model, frozen: &Frozen, subset: Subset) ->
 pub fn latent_exact(level: &Level, model: &Model, frozen: &Frozen, lanes: usize) -> Result<Vec<f64>> {
     fn pass<const K: usize>(level: &Level, model: &Model, frozen: &Frozen) -> Vec<f64> {
         let n = model.z.len();
-        let w: Vec<DualSVec64<K>> = model.w.iter().map(|&v| DualSVec64::from_re(v)).collect();
         let mut grad = Vec::with_capacity(n);
         for first in (0..n).step_by(K) {
             let z: Vec<DualSVec64<K>> = (0..n)
@@ -41,7 +41,7 @@ pub fn latent_exact(level: &Level, model: &Model, frozen: &Frozen, lanes: usize)
                     }
                 })
                 .collect();
-            let density = tangent_grid(level, model, &z, &w);
+            let density = tangent_grid(level, model, model.decoder.forward_fixed_weights(&z, &model.w, &model.mask));
             let (_, d) = directional(frozen, &density, &level.targets);
             grad.extend_from_slice(&d[..K.min(n - first)]);
         }
@@ -72,8 +72,7 @@ pub fn latent_random(
         let (dirs, factor) = random_directions::<K>(n, kind, rng);
         let z: Vec<DualSVec64<K>> =
             (0..n).map(|i| with_tangents(model.z[i], std::array::from_fn(|k| dirs[k][i]))).collect();
-        let w: Vec<DualSVec64<K>> = model.w.iter().map(|&v| DualSVec64::from_re(v)).collect();
-        let density = tangent_grid(level, model, &z, &w);
+        let density = tangent_grid(level, model, model.decoder.forward_fixed_weights(&z, &model.w, &model.mask));
         let (_, d) = directional(frozen, &density, &level.targets);
         (0..n).map(|i| factor * (0..K).map(|k| d[k] * dirs[k][i]).sum::<f64>()).collect()
     }
@@ -167,16 +166,10 @@ pub fn guided_basis(level: &Level, model: &Model, frozen: &Frozen, k: usize, rng
     orthonormalize(dirs)
 }
 
-/// The decoder's output with K tangents, as the level's grid for the renderer.
-fn tangent_grid<const K: usize>(
-    level: &Level,
-    model: &Model,
-    z: &[DualSVec64<K>],
-    w: &[DualSVec64<K>],
-) -> Grid<DualSVec64<K>> {
+/// The decoder's output `decoded` with K tangents, as the level's grid for the renderer.
+fn tangent_grid<const K: usize>(level: &Level, model: &Model, decoded: Vec<DualSVec64<K>>) -> Grid<DualSVec64<K>> {
     let d = &level.scene.density;
-    let shape = model.decoder_shape();
-    level.grid(Grid::new(d.lo, d.hi, shape, model.decoder.forward(z, w, &model.mask)))
+    level.grid(Grid::new(d.lo, d.hi, model.decoder_shape(), decoded))
 }
 
 /// Directional derivatives of the loss along weight-space directions `dirs`,
@@ -193,9 +186,10 @@ fn weight_derivatives(
         let mut out = vec![];
         for chunk in dirs.chunks(K) {
             let w: Vec<DualSVec64<K>> = (0..model.w.len())
+                .into_par_iter()
                 .map(|i| with_tangents(model.w[i], std::array::from_fn(|k| chunk.get(k).map_or(0.0, |d| d[i]))))
                 .collect();
-            let density = tangent_grid(level, model, &z, &w);
+            let density = tangent_grid(level, model, model.decoder.forward(&z, &w, &model.mask));
             let (_, d) = directional(frozen, &density, &level.targets);
             out.extend_from_slice(&d[..chunk.len()]);
         }
