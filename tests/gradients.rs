@@ -198,7 +198,7 @@ fn tape_primal_matches(scene: &Scene) {
     let frozen = Frozen::new(scene, None);
     let d = &scene.density;
     let leaves = Grid::new(d.lo, d.hi, d.shape, (0..d.len()).map(|v| Var::leaf(v as u32, d.data[v])).collect());
-    let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
+    let multiple = frozen.multiple_with(|p| frozen.photons[p].power, scene.cameras.len());
     let depths = frozen
         .light_depths(d)
         .map(|per_light| per_light.iter().map(|g| g.as_ref().map(|g| g.map(Var::constant))).collect::<Vec<_>>());

@@ -212,7 +212,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
 
     // Leaves: voxels 0..V, then the estimate's slots camera by camera.
     let leaf_density = leaf_grid(density, 0);
-    let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
+    let multiple = frozen.multiple_with(|p| frozen.photons[p].power, scene.cameras.len());
     let nodes = multiple.as_ref().map_or(0, |m| m[0].values.len());
     let leaf_multiple: Option<Vec<Estimate<Var>>> = multiple.as_ref().map(|estimates| {
         estimates.iter().enumerate().map(|(c, e)| e.with_values(leaves(&e.values, voxels + c * nodes))).collect()

@@ -52,6 +52,13 @@ impl<R: Real> CameraRays<'_, R> {
             .collect()
     }
 
+    /// The images of several cameras, each given with the index of its
+    /// first pixel and its photon estimate ([`image`](Self::image)), in
+    /// one parallel loop: no camera waits for the last pixels of another.
+    pub fn images(&self, cameras: &[(&Camera, u64, Option<&Estimate<R>>)]) -> Vec<Vec<R>> {
+        cameras.par_iter().map(|&(camera, first_pixel, multiple)| self.image(camera, first_pixel, multiple)).collect()
+    }
+
     /// Pixel `p` (row-major) of `camera`: the mean of `spp` jittered rays,
     /// stratified as a Latin hypercube over the pixel (one sample per row
     /// and per column stratum).

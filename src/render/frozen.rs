@@ -13,7 +13,7 @@ use super::splat::{Estimate, Kernel, SplatGeometry};
 use crate::ad::Real;
 use crate::image::Image;
 use crate::par;
-use crate::scene::Scene;
+use crate::scene::{Camera, Scene};
 use crate::volume::majorant::MAJORANT_BLOCK;
 use crate::volume::{Grid, Majorant};
 use rayon::prelude::*;
@@ -146,19 +146,18 @@ impl<'a> Frozen<'a> {
         };
         let (images, depths, gather, shadows, camera) = {
             let t = Instant::now();
-            let multiple = frozen.multiple_with(|p| frozen.photons[p].power);
+            let multiple = frozen.multiple_with(|p| frozen.photons[p].power, scene.cameras.len());
             let gather = t.elapsed().as_secs_f64();
             let t = Instant::now();
             let depths = frozen.light_depths(density);
             let shadows = t.elapsed().as_secs_f64();
             let t = Instant::now();
             let rays = frozen.camera_rays(density, None, depths.as_ref());
-            let images = (0..scene.cameras.len())
-                .map(|c| {
-                    let camera = &scene.cameras[c];
-                    let data = rays.image(camera, frozen.first_pixel[c], multiple.as_ref().map(|m| &m[c]));
-                    Image { width: camera.width, height: camera.height, data }
-                })
+            let images = rays
+                .images(&frozen.camera_list(scene.cameras.len(), multiple.as_deref()))
+                .into_iter()
+                .zip(&scene.cameras)
+                .map(|(data, camera)| Image { width: camera.width, height: camera.height, data })
                 .collect();
             (images, depths, gather, shadows, t.elapsed().as_secs_f64())
         };
@@ -247,11 +246,15 @@ impl<'a> Frozen<'a> {
         self.first_pixel[c]
     }
 
-    /// The photon estimate towards each camera with photon `p`'s power given
-    /// by `power(p)`; `None` if there are no photons.
-    pub fn multiple_with<R: Real>(&self, power: impl Fn(usize) -> R + Sync) -> Option<Vec<Estimate<'_, R>>> {
+    /// The photon estimate towards each of the first `cameras` cameras with
+    /// photon `p`'s power given by `power(p)`; `None` if there are no photons.
+    pub fn multiple_with<R: Real>(
+        &self,
+        power: impl Fn(usize) -> R + Sync,
+        cameras: usize,
+    ) -> Option<Vec<Estimate<'_, R>>> {
         let geometry = self.geometry.as_ref()?;
-        let cams: Vec<_> = self.scene.cameras.iter().map(|c| c.position).collect();
+        let cams: Vec<_> = self.scene.cameras.iter().take(cameras).map(|c| c.position).collect();
         let m = &self.scene.medium;
         Some(geometry.estimate_with(&self.photons, power, &self.kernel, &cams, m.albedo, m.g))
     }
@@ -291,12 +294,21 @@ impl<'a> Frozen<'a> {
     /// The images of the first `cameras` cameras as functions of `density`,
     /// frozen at this estimator's decisions (one `Vec` per camera, row-major).
     pub fn images_with<R: Real>(&self, density: &Grid<R>, cameras: usize) -> Vec<Vec<R>> {
+        let cameras = cameras.min(self.scene.cameras.len());
         let powers = self.photon_powers(density);
-        let multiple = self.multiple_with(|p| powers[p]);
+        let multiple = self.multiple_with(|p| powers[p], cameras);
         let depths = self.light_depths(density);
         let rays = self.camera_rays(density, Some(&self.scene.density), depths.as_ref());
-        (0..cameras.min(self.scene.cameras.len()))
-            .map(|c| rays.image(&self.scene.cameras[c], self.first_pixel[c], multiple.as_ref().map(|m| &m[c])))
-            .collect()
+        rays.images(&self.camera_list(cameras, multiple.as_deref()))
+    }
+
+    /// The first `cameras` cameras, each with the index of its first pixel
+    /// and its photon estimate, as [`CameraRays::images`] takes them.
+    fn camera_list<'b, R: Real>(
+        &'b self,
+        cameras: usize,
+        multiple: Option<&'b [Estimate<'b, R>]>,
+    ) -> Vec<(&'b Camera, u64, Option<&'b Estimate<'b, R>>)> {
+        (0..cameras).map(|c| (&self.scene.cameras[c], self.first_pixel[c], multiple.map(|m| &m[c]))).collect()
     }
 }
