@@ -36,6 +36,26 @@ pub fn filled<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
     (0..len).into_par_iter().with_min_len(4096).map(|_| value.clone()).collect()
 }
 
+/// `(a(), b())`, the two running side by side and feeding the same thread
+/// pool, so that the serial parts and the last tasks of each overlap the
+/// other's work (16 threads idle at the end of every parallel loop of one
+/// render). Called from outside a pool, `a` runs on the calling thread and
+/// `b` on a helper thread: unlike `rayon::join`, `a`'s large allocations
+/// then come from the main thread's allocator arena, which keeps freed
+/// memory ([`crate::process::keep_freed_memory`]), while a pool thread's
+/// arena maps anything over 64 MiB anew each time.
+pub fn alongside<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> (A, B) {
+    if rayon::current_thread_index().is_some() {
+        // Inside a pool (a test's, say): both stay in it.
+        return rayon::join(a, b);
+    }
+    std::thread::scope(|s| {
+        let helper = s.spawn(b);
+        let a = a();
+        (a, helper.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -48,5 +68,14 @@ mod tests {
             let serial: Vec<u64> = parts.iter().flatten().copied().collect();
             assert_eq!(concat(parts), serial, "sizes {sizes:?}");
         }
+    }
+
+    #[test]
+    fn alongside_gives_both_results_in_and_outside_a_pool() {
+        let work = |k: u64| (0..100_000u64).into_par_iter().map(|i| i * i % (k + 7)).sum::<u64>();
+        let serial = |k: u64| (0..100_000u64).map(|i| i * i % (k + 7)).sum::<u64>();
+        assert_eq!(alongside(|| work(1), || work(2)), (serial(1), serial(2)));
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        assert_eq!(pool.install(|| alongside(|| work(3), || work(4))), (serial(3), serial(4)));
     }
 }

@@ -96,19 +96,11 @@ impl Level {
         level
     }
 
-    /// This level with its residual taken from a second, independent render
-    /// of `decoded` (`photons`, `spp`, `seed`) rather than from `images`, the
-    /// render being differentiated ([`Level::with_residual_from`]).
-    pub fn with_independent_residual(
-        &self,
-        decoded: &Grid<f64>,
-        images: &[Image],
-        photons: u64,
-        spp: u32,
-        seed: u64,
-    ) -> Level {
-        let second = render_photon(&self.scene_at(decoded, photons, spp, seed)).images;
-        self.with_residual_from(images, &second)
+    /// The images of a second, independent render of `decoded` (`photons`,
+    /// `spp`, `seed`): for [`Level::with_residual_from`], so that the residual
+    /// of the render being differentiated comes from another render.
+    pub fn independent_images(&self, decoded: &Grid<f64>, photons: u64, spp: u32, seed: u64) -> Vec<Image> {
+        render_photon(&self.scene_at(decoded, photons, spp, seed)).images
     }
 
     /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.
