@@ -15,6 +15,7 @@ use crate::grad::forward::Directions;
 use crate::grad::reverse::Subset;
 pub use crate::grad::Estimator;
 use crate::model::Model;
+use crate::par;
 use crate::render::frozen::Frozen;
 use crate::rng::Rng;
 use serde::{Deserialize, Serialize};
@@ -148,27 +149,35 @@ pub fn parameter_gradient(
         Estimator::FwdFull => {
             let voxels: usize = model.decoder_shape().iter().product();
             let lanes = if voxels > WIDE_LANES_UP_TO { lanes.min(LANES_ABOVE_64_CUBED) } else { lanes };
-            let latent = if s.latent {
-                dense(param_grad::latent_exact(level, model, frozen, lanes))?
-            } else {
-                Entries::default()
+            let latent_pass = || {
+                if s.latent {
+                    dense(param_grad::latent_exact(level, model, frozen, lanes))
+                } else {
+                    Ok(Entries::default())
+                }
             };
-            let weights = match (k, s.weight_mode) {
-                (0, _) => Entries::default(),
+            let mut weights_pass = || match (k, s.weight_mode) {
+                (0, _) => Ok(Entries::default()),
                 (_, WeightDirections::Coordinates) => {
                     let n = model.w.len();
                     let first = update * k.min(n) % n.max(1);
-                    let (indices, values) = param_grad::weights_coordinates(level, model, frozen, k, lanes, first)?;
-                    Entries { indices, values }
+                    param_grad::weights_coordinates(level, model, frozen, k, lanes, first)
+                        .map(|(indices, values)| Entries { indices, values })
                 }
                 (_, WeightDirections::Orthonormal) => {
-                    dense(param_grad::weights_random(level, model, frozen, k, Directions::Orthonormal, lanes, rng))?
+                    dense(param_grad::weights_random(level, model, frozen, k, Directions::Orthonormal, lanes, rng))
                 }
-                (_, WeightDirections::Guided) => {
-                    dense(param_grad::weights_guided(level, model, frozen, k, lanes, rng))?
-                }
+                (_, WeightDirections::Guided) => dense(param_grad::weights_guided(level, model, frozen, k, lanes, rng)),
             };
-            (latent, weights)
+            // The two are independent: side by side, the weights' serial parts (the guided
+            // basis) overlap the latent's work. Above 64^3 the weights' dual grids outgrow
+            // what a helper thread's allocator keeps (page faults cost more than the overlap saves).
+            let (latent, weights) = if voxels <= WIDE_LANES_UP_TO {
+                par::alongside(latent_pass, weights_pass)
+            } else {
+                (latent_pass(), weights_pass())
+            };
+            (latent?, weights?)
         }
         Estimator::FwdRand => {
             let latent = if s.latent {
