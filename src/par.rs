@@ -38,8 +38,8 @@ pub fn filled<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
 
 /// `(a(), b())`, the two running side by side and feeding the same thread
 /// pool, so that the serial parts and the last tasks of each overlap the
-/// other's work (16 threads idle at the end of every parallel loop of one
-/// render). Called from outside a pool, `a` runs on the calling thread and
+/// other's work (on 16 threads, one render alone leaves many of them idle
+/// at the end of each of its parallel loops). Called from outside a pool, `a` runs on the calling thread and
 /// `b` on a helper thread: unlike `rayon::join`, `a`'s large allocations
 /// then come from the main thread's allocator arena, which keeps freed
 /// memory ([`crate::process::keep_freed_memory`]), while a pool thread's
