@@ -4,6 +4,8 @@
 use super::problem::Problem;
 use crate::ad::Real;
 use crate::image::Image;
+use crate::par;
+use crate::render::frozen::Frozen;
 use crate::render::render_photon;
 use crate::scene::Scene;
 use crate::volume::Grid;
@@ -73,8 +75,8 @@ impl Level {
     }
 
     /// This level's scene at the decoder's grid `decoded`, rendered with
-    /// `photons`, `spp` and `seed`; freeze it with
-    /// `Frozen::new(&scene, Some(&level.support))`.
+    /// `photons`, `spp` and `seed`; freeze it with [`Level::freeze`] (or
+    /// `Frozen::new(&scene, Some(&level.support))`).
     pub fn scene_at(&self, decoded: &Grid<f64>, photons: u64, spp: u32, seed: u64) -> Scene {
         let mut scene = self.scene.clone();
         scene.density = self.grid(decoded.clone());
@@ -96,11 +98,24 @@ impl Level {
         level
     }
 
-    /// The images of a second, independent render of `decoded` (`photons`,
-    /// `spp`, `seed`): for [`Level::with_residual_from`], so that the residual
-    /// of the render being differentiated comes from another render.
-    pub fn independent_images(&self, decoded: &Grid<f64>, photons: u64, spp: u32, seed: u64) -> Vec<Image> {
-        render_photon(&self.scene_at(decoded, photons, spp, seed)).images
+    /// The frozen estimator of `scene` (this level's scene at `decoded`,
+    /// [`Level::scene_at`]) and, if `residual_seed` is given, this level
+    /// with its residual taken from a second, independent render of
+    /// `decoded` with that seed ([`Level::with_residual_from`]): the two
+    /// renders side by side ([`par::alongside`]).
+    pub fn freeze<'s>(
+        &self,
+        scene: &'s Scene,
+        decoded: &Grid<f64>,
+        residual_seed: Option<u64>,
+    ) -> (Frozen<'s>, Option<Level>) {
+        let (photons, spp) = (scene.render.photons, scene.render.spp);
+        let (frozen, second) = par::alongside(
+            || Frozen::new(scene, Some(&self.support)),
+            || residual_seed.map(|seed| render_photon(&self.scene_at(decoded, photons, spp, seed)).images),
+        );
+        let shifted = second.map(|second| self.with_residual_from(&frozen.images, &second));
+        (frozen, shifted)
     }
 
     /// `dL/d(decoder grid)` from `dL/d(this level's grid)`.

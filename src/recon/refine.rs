@@ -18,8 +18,6 @@ use crate::error::{Error, Result};
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::model::Model;
 use crate::optim::Adam;
-use crate::par;
-use crate::render::frozen::Frozen;
 use crate::volume::Grid;
 use std::time::Instant;
 
@@ -187,20 +185,11 @@ pub fn refine_density(
         fields.iter_mut().for_each(|f| (f.adam_s.lr, f.adam_a.lr) = (settings.lr * decay, lr_a * decay));
         let (density, additive) = density_of(&fields, g[0]);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
-        let (photons, spp) = (settings.photons, settings.spp);
-        let scene = level.scene_at(&density, photons, spp, seed);
-        let (frozen, residual_images) = par::alongside(
-            || Frozen::new(&scene, Some(&level.support)),
-            || settings.decorrelate.then(|| level.independent_images(&density, photons, spp, seed ^ 1)),
-        );
+        let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
+        let (frozen, shifted) = level.freeze(&scene, &density, settings.decorrelate.then_some(seed ^ 1));
         observe(&log_row(first + u, problem, &level, mask, &density, &frozen, start.elapsed().as_secs_f64()));
-        let grad = match residual_images {
-            Some(residual) => {
-                let shifted = level.with_residual_from(&frozen.images, &residual);
-                reverse_gradient(&frozen, &shifted.targets, Subset::full()).grad
-            }
-            None => reverse_gradient(&frozen, &level.targets, Subset::full()).grad,
-        };
+        let targets = &shifted.as_ref().unwrap_or(&level).targets;
+        let grad = reverse_gradient(&frozen, targets, Subset::full()).grad;
         let n = hull.len().max(1) as f64;
         // d density / d (any log-factor) = the multiplicative part, density - additive.
         let image_part: Vec<f64> =

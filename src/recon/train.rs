@@ -23,7 +23,6 @@ use crate::grad::loss::mse;
 use crate::image::Image;
 use crate::model::Model;
 use crate::optim::Adam;
-use crate::par;
 use crate::render::frozen::Frozen;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
@@ -184,21 +183,11 @@ pub fn train(
         (adam_z.lr, adam_w.lr) = (settings.lr_latent * decay, settings.lr_weights * decay);
         let decoded = model.density(&problem.scene.density);
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
-        let (photons, spp) = (settings.photons, settings.spp);
-        let scene = level.scene_at(&decoded, photons, spp, seed);
-        let (frozen, residual_images) = par::alongside(
-            || Frozen::new(&scene, Some(&level.support)),
-            || settings.decorrelate.then(|| level.independent_images(&decoded, photons, spp, seed ^ DECORRELATE_SEED)),
-        );
+        let scene = level.scene_at(&decoded, settings.photons, settings.spp, seed);
+        let (frozen, shifted) = level.freeze(&scene, &decoded, settings.decorrelate.then_some(seed ^ DECORRELATE_SEED));
         let row = log_row(it, problem, level, &model.mask, &decoded, &frozen, start.elapsed().as_secs_f64());
         observe(&row, model, &frozen.images);
-        let mut g = match residual_images {
-            Some(residual) => {
-                let level = level.with_residual_from(&frozen.images, &residual);
-                parameter_gradient(&level, model, &frozen, &estimator, it, &mut rng)?
-            }
-            None => parameter_gradient(level, model, &frozen, &estimator, it, &mut rng)?,
-        };
+        let mut g = parameter_gradient(shifted.as_ref().unwrap_or(level), model, &frozen, &estimator, it, &mut rng)?;
         if settings.sparsity > 0.0 {
             add_sparsity_gradient(model, settings.sparsity, &mut g.latent, &mut g.weights);
         }
