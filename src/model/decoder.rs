@@ -12,6 +12,7 @@
 //! weights `[kz][ky][kx][ci][co]` and its biases `[co]`.
 
 use super::conv::{Conv, TAPS};
+use super::layout::Plans;
 use crate::bail;
 use crate::error::Result;
 use crate::rng::{Purpose, Rng};
@@ -60,6 +61,8 @@ pub struct Decoder {
     /// Slope of the last layer below 0, relative (0: ReLU, the density
     /// model; > 0 only while a prior is trained).
     pub(super) out_leak: f64,
+    /// The layouts of the last mask evaluated.
+    pub(super) plans: Plans,
 }
 
 impl Decoder {
@@ -102,7 +105,16 @@ impl Decoder {
             off += conv.params();
             convs.push(conv);
         }
-        Ok(Decoder { latent, res, c0, convs, out_scale: OUT_SCALE, n_params: off, out_leak: 0.0 })
+        Ok(Decoder {
+            latent,
+            res,
+            c0,
+            convs,
+            out_scale: OUT_SCALE,
+            n_params: off,
+            out_leak: 0.0,
+            plans: Plans::default(),
+        })
     }
 
     /// The default decoder for a `res^3` grid (`res` = 4 * 2^L with

@@ -7,6 +7,7 @@
 //! footprints); each grid is stored compactly at just those voxels.
 
 use rayon::prelude::*;
+use std::sync::{Arc, Mutex};
 
 /// Marks a voxel a layout does not store.
 const NONE: u32 = u32::MAX;
@@ -137,6 +138,36 @@ pub(super) fn plan(mask: &[bool], res: usize, edges: &[usize]) -> Vec<Layout> {
     layouts
 }
 
+/// The layouts of the last mask a decoder was evaluated on. A training
+/// update evaluates the decoder several times on one mask (every pass of
+/// every update): planning anew each time cost about 40 small parallel
+/// loops per update, whose start and join on 16 threads outweigh their work.
+#[derive(Debug, Default)]
+pub(super) struct Plans(Mutex<Option<(Vec<bool>, Arc<Vec<Layout>>)>>);
+
+impl Plans {
+    /// [`plan`]`(mask, res, edges)`, reused while the mask stays the same.
+    pub(super) fn get(&self, mask: &[bool], res: usize, edges: &[usize]) -> Arc<Vec<Layout>> {
+        // Held while planning: two passes side by side on a new mask plan it once.
+        let mut last = self.0.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        match &*last {
+            Some((m, layouts)) if m.as_slice() == mask => layouts.clone(),
+            _ => {
+                let layouts = Arc::new(plan(mask, res, edges));
+                *last = Some((mask.to_vec(), layouts.clone()));
+                layouts
+            }
+        }
+    }
+}
+
+impl Clone for Plans {
+    /// An empty cache: a copy plans on its first evaluation.
+    fn clone(&self) -> Plans {
+        Plans::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -162,5 +193,21 @@ mod tests {
             }
         }
         assert_eq!(got, want);
+    }
+
+    #[test]
+    fn plans_are_reused_only_for_the_same_mask() {
+        let (res, edges) = (16, [4, 8]);
+        let a: Vec<bool> = normals(5, 4096).iter().map(|&u| u > 0.0).collect();
+        let mut b = a.clone();
+        b[100] = !b[100];
+        let plans = Plans::default();
+        let first = plans.get(&a, res, &edges);
+        assert!(Arc::ptr_eq(&first, &plans.get(&a, res, &edges)));
+        let other = plans.get(&b, res, &edges);
+        assert!(!Arc::ptr_eq(&first, &other));
+        let rows = |ls: &[Layout]| ls.iter().map(|l| (l.start.clone(), l.index.clone())).collect::<Vec<_>>();
+        assert_eq!(rows(&other), rows(&plan(&b, res, &edges)));
+        assert_eq!(rows(&plans.get(&a, res, &edges)), rows(&first));
     }
 }

@@ -9,17 +9,18 @@
 
 use super::conv::{conv_forward, conv_grad_input, conv_grad_weights, Act};
 use super::decoder::{Decoder, BASE};
-use super::layout::{self, Layout};
+use super::layout::Layout;
 use crate::ad::Real;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 impl Decoder {
     /// Where each grid is evaluated: the base grid (everywhere), then each
     /// convolution's output; the last is `mask`, each earlier one what the
-    /// next one reads.
-    fn layouts(&self, mask: &[bool]) -> Vec<Layout> {
+    /// next one reads. Planned once per mask (see [`super::layout::Plans`]).
+    fn layouts(&self, mask: &[bool]) -> Arc<Vec<Layout>> {
         let edges: Vec<usize> = self.convs.iter().map(|c| c.n).collect();
-        layout::plan(mask, self.res, &edges)
+        self.plans.get(mask, self.res, &edges)
     }
 
     /// Panics on a wrong length: every caller builds `z`, `w` and `mask`
@@ -513,7 +514,7 @@ mod tests {
                 time(|| d.forward(&zr, &wr, &mask)),
                 time(|| d.forward_masked(&zd, &wd, &mask)),
                 time(|| d.backward(&z, &w, &mask, &g)),
-                time(|| d.layouts(&mask))
+                time(|| d.clone().layouts(&mask))
             );
         }
     }
