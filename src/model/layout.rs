@@ -143,7 +143,14 @@ pub(super) fn plan(mask: &[bool], res: usize, edges: &[usize]) -> Vec<Layout> {
 /// every update): planning anew each time cost about 40 small parallel
 /// loops per update, whose start and join on 16 threads outweigh their work.
 #[derive(Debug, Default)]
-pub(super) struct Plans(Mutex<Option<(Vec<bool>, Arc<Vec<Layout>>)>>);
+pub(super) struct Plans(Mutex<Option<Plan>>);
+
+/// A mask and its layouts.
+#[derive(Debug)]
+struct Plan {
+    mask: Vec<bool>,
+    layouts: Arc<Vec<Layout>>,
+}
 
 impl Plans {
     /// [`plan`]`(mask, res, edges)`, reused while the mask stays the same.
@@ -151,10 +158,10 @@ impl Plans {
         // Held while planning: two passes side by side on a new mask plan it once.
         let mut last = self.0.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         match &*last {
-            Some((m, layouts)) if m.as_slice() == mask => layouts.clone(),
+            Some(last) if last.mask == mask => last.layouts.clone(),
             _ => {
                 let layouts = Arc::new(plan(mask, res, edges));
-                *last = Some((mask.to_vec(), layouts.clone()));
+                *last = Some(Plan { mask: mask.to_vec(), layouts: layouts.clone() });
                 layouts
             }
         }
