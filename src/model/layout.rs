@@ -140,7 +140,7 @@ pub(super) fn plan(mask: &[bool], res: usize, edges: &[usize]) -> Vec<Layout> {
 
 /// The layouts of the last mask a decoder was evaluated on. A training
 /// update evaluates the decoder several times on one mask (every pass of
-/// every update): planning anew each time cost about 40 small parallel
+/// every update): planning anew each time cost about 100 small parallel
 /// loops per update, whose start and join on 16 threads outweigh their work.
 #[derive(Debug, Default)]
 pub(super) struct Plans(Mutex<Option<Plan>>);
