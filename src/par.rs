@@ -1,5 +1,10 @@
 //! Parallel building blocks whose results are those of the serial code,
 //! bit for bit, whatever the number of threads.
+//!
+//! Loops whose items differ in cost cap their tasks (`with_max_len`):
+//! rayon otherwise cuts a loop into about twice as many tasks as threads,
+//! whatever they cost, and the thread left with the costly task keeps all
+//! the others waiting at the end of the loop.
 
 use rayon::prelude::*;
 

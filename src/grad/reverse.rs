@@ -147,6 +147,7 @@ fn draw_subset(n: usize, count: Option<usize>, rng: &mut Rng) -> (Vec<usize>, f6
 fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut Scratch, usize) + Sync) -> usize {
     let parts: Vec<(Vec<(u32, f64)>, usize)> = indices
         .par_chunks(CHUNK)
+        .with_max_len(1)
         .map(|chunk| {
             SCRATCH.with_borrow_mut(|scratch| {
                 scratch.reserve(leaves);

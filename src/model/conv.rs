@@ -182,7 +182,8 @@ where
     let (n, c_in, c_out) = (conv.n, conv.c_in, conv.c_out);
     let m = 2 * n;
     let mut out = par::filled(lout.rows() * c_out, R::cst(0.0));
-    lout.slabs(&mut out, c_out).into_par_iter().for_each(|(oz, part)| {
+    // One task per slab: the hull mask makes slabs differ in cost (see `crate::par`).
+    lout.slabs(&mut out, c_out).into_par_iter().with_max_len(1).for_each(|(oz, part)| {
         let (tz, nz) = taps(oz, n);
         for (yx, row) in lout.in_slab(oz).zip(part.chunks_exact_mut(c_out)) {
             let (ty, ny) = taps(yx / m, n);
@@ -240,6 +241,7 @@ fn grad_weights_at<const C: usize>(c: &Conv, input: &[f64], lin: &Layout, g: &[f
     let size = TAPS * c_in * c_out + c_out;
     let partials: Vec<Vec<f64>> = (0..m)
         .into_par_iter()
+        .with_max_len(1)
         .map(|oz| {
             let mut part = vec![0.0; size];
             let (kernel, bias) = part.split_at_mut(TAPS * c_in * c_out);
@@ -301,7 +303,7 @@ fn grad_input_at<const C: usize>(c: &Conv, w: &[f64], g: &[f64], lout: &Layout, 
     let m = 2 * n;
     let kernel = c.weights(w);
     let mut gin = vec![0.0; lin.rows() * c_in];
-    lin.slabs(&mut gin, c_in).into_par_iter().for_each(|(iz, part)| {
+    lin.slabs(&mut gin, c_in).into_par_iter().with_max_len(1).for_each(|(iz, part)| {
         let (oz, cz) = outs(iz, m);
         for (yx, row) in lin.in_slab(iz).zip(part.chunks_exact_mut(c_in)) {
             let (oy, cy) = outs(yx / n, m);

@@ -210,11 +210,22 @@ fn combine(dirs: &[Vec<f64>], d: &[f64], factor: f64) -> Vec<f64> {
 
 /// K random directions over `n` coordinates (any K) and the unbiasing factor.
 fn directions(n: usize, k: usize, kind: Directions, rng: &mut Rng) -> (Vec<Vec<f64>>, f64) {
-    let mut dirs = vec![];
-    for _ in 0..k.div_ceil(16) {
-        dirs.extend(random_directions::<16>(n, kind, rng).0);
-    }
-    dirs.truncate(k);
+    let dirs = match kind {
+        // The draws of whole blocks of 16, as below, without drawing the unused ones.
+        Directions::Gaussian => {
+            let dirs = (0..k).map(|_| rng.normals(n)).collect();
+            rng.skip_normals((k.div_ceil(16) * 16 - k) * n);
+            dirs
+        }
+        Directions::Orthonormal => {
+            let mut dirs = vec![];
+            for _ in 0..k.div_ceil(16) {
+                dirs.extend(random_directions::<16>(n, kind, rng).0);
+            }
+            dirs.truncate(k);
+            dirs
+        }
+    };
     // Orthonormal blocks of 16 are independent of each other; E[q q^T] = I/n for each, so n/K stays unbiased.
     let factor = match kind {
         Directions::Gaussian => 1.0 / k as f64,

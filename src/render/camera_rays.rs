@@ -47,7 +47,9 @@ impl<R: Real> CameraRays<'_, R> {
     pub fn image(&self, camera: &Camera, first_pixel: u64, multiple: Option<&Estimate<R>>) -> Vec<R> {
         (0..camera.pixels())
             .into_par_iter()
+            // Pixels that see the medium cost far more than the others (see `crate::par`).
             .with_min_len(16)
+            .with_max_len(32)
             .map(|p| self.pixel(camera, first_pixel, p, multiple))
             .collect()
     }

@@ -88,6 +88,7 @@ fn active_cells(e: &Emitter, majorant: &Majorant, lo: &Vec3, hi: &Vec3) -> Vec<u
     let mark: Vec<bool> = (0..MAP * MAP)
         .into_par_iter()
         .with_min_len(MAP)
+        .with_max_len(MAP)
         .map(|cell| {
             let (cu, cv) = ((cell / MAP) as f64, (cell % MAP) as f64);
             (0..PROBES * PROBES).any(|s| {

@@ -277,6 +277,7 @@ impl<'a> Frozen<'a> {
         const CHUNK: usize = 256;
         let parts: Vec<Vec<R>> = (0..self.paths().div_ceil(CHUNK))
             .into_par_iter()
+            .with_max_len(1)
             .map(|c| {
                 let mut steps = vec![];
                 let mut powers = vec![];

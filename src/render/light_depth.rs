@@ -51,8 +51,10 @@ pub struct LightDepth {
     seed: u64,
 }
 
-/// Nodes per parallel task.
-const CHUNK: usize = 256;
+/// Nodes per parallel task, at most. The marched nodes cluster where the
+/// medium is, so a task of many nodes can hold much of the loop's work and
+/// finish long after the other threads ran out.
+const CHUNK: usize = 64;
 
 impl LightDepth {
     /// Depth grids of `lights` over `marcher`'s box, a node every `cell`
@@ -125,7 +127,7 @@ impl LightDepth {
                 // filling it on one thread would be a serial part of every render.
                 let mut data: Vec<R> = (0..self.grid_len())
                     .into_par_iter()
-                    .with_min_len(CHUNK)
+                    .with_max_len(CHUNK)
                     .map(|v| match self.marched[v].then(|| self.shadow_ray(v, l, light)).flatten() {
                         Some((ray, dist, jitter)) => marcher.optical_depth(density, self.scale, &ray, dist, jitter),
                         None => R::cst(0.0),

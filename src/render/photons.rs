@@ -106,10 +106,11 @@ impl Tracer<'_> {
             let start = vec![0; if keep_flights { count as usize + 1 } else { 1 }];
             return (vec![], Flights { flights: vec![], start });
         }
-        // Small enough for 16 threads to share 50,000 photons evenly.
+        // Small enough for 16 threads to share 50,000 photons evenly, one task each (see `crate::par`).
         const CHUNK: u64 = 256;
         let chunks: Vec<(Vec<Photon>, Vec<Flight>, Vec<usize>)> = (0..count.div_ceil(CHUNK) as usize)
             .into_par_iter()
+            .with_max_len(1)
             .map(|c| {
                 let range = c as u64 * CHUNK..((c as u64 + 1) * CHUNK).min(count);
                 let mut out = Vec::with_capacity(range.clone().count() * (self.medium.max_order as usize - 1));

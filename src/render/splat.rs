@@ -229,6 +229,7 @@ impl SplatGeometry {
             .collect();
         let reach: Vec<Vec<u32>> = (0..n_slabs)
             .into_par_iter()
+            .with_max_len(1)
             .map(|s| {
                 let reaches = |p: &usize| slab_range[*p].0 <= s && s <= slab_range[*p].1;
                 (0..photons.len()).filter(reaches).map(|p| p as u32).collect()
@@ -246,11 +247,13 @@ impl SplatGeometry {
         }
         // Per camera, every photon's phase towards it, once (a photon reaches one slab or more).
         let phases: Vec<Vec<Option<f64>>> = cameras
-            .iter()
+            .par_iter()
             .map(|camera| photons.par_iter().with_min_len(1024).map(|p| phase_towards(p, camera, g)).collect())
             .collect();
+        // One task per slab: the photons crowd into some of them (see `crate::par`).
         let slabs: Vec<Vec<R>> = (0..cameras.len() * n_slabs)
             .into_par_iter()
+            .with_max_len(1)
             .map(|task| {
                 let (cam, s) = (task / n_slabs, task % n_slabs);
                 let (first, last) = (s * SLAB * plane, ((s + 1) * SLAB).min(nz) * plane);
