@@ -22,6 +22,9 @@ use rayon::prelude::*;
 pub const LEAKY_SLOPE: f64 = 0.2;
 /// Kernel taps per transposed convolution (4 x 4 x 4).
 pub(super) const TAPS: usize = 64;
+/// Voxels per parallel task of a layer, at least: tasks of whole z-slabs
+/// would differ in size (the hull mask), and a layer of edge 16 has 16.
+const ROWS: usize = 8;
 
 /// One transposed convolution: kernel 4, stride 2, padding 1.
 #[derive(Clone, Debug)]
@@ -182,10 +185,9 @@ where
     let (n, c_in, c_out) = (conv.n, conv.c_in, conv.c_out);
     let m = 2 * n;
     let mut out = par::filled(lout.rows() * c_out, R::cst(0.0));
-    // One task per slab: the hull mask makes slabs differ in cost (see `crate::par`).
-    lout.slabs(&mut out, c_out).into_par_iter().with_max_len(1).for_each(|(oz, part)| {
-        let (tz, nz) = taps(oz, n);
-        for (yx, row) in lout.in_slab(oz).zip(part.chunks_exact_mut(c_out)) {
+    out.par_chunks_mut(ROWS * c_out).enumerate().for_each(|(t, part)| {
+        for ((oz, yx), row) in lout.voxels_of(t * ROWS, part.len() / c_out).zip(part.chunks_exact_mut(c_out)) {
+            let (tz, nz) = taps(oz, n);
             let (ty, ny) = taps(yx / m, n);
             let (tx, nx) = taps(yx % m, n);
             let mut acc: [R; C] = std::array::from_fn(|j| bias[j]);
@@ -303,9 +305,9 @@ fn grad_input_at<const C: usize>(c: &Conv, w: &[f64], g: &[f64], lout: &Layout, 
     let m = 2 * n;
     let kernel = c.weights(w);
     let mut gin = vec![0.0; lin.rows() * c_in];
-    lin.slabs(&mut gin, c_in).into_par_iter().with_max_len(1).for_each(|(iz, part)| {
-        let (oz, cz) = outs(iz, m);
-        for (yx, row) in lin.in_slab(iz).zip(part.chunks_exact_mut(c_in)) {
+    gin.par_chunks_mut(ROWS * c_in).enumerate().for_each(|(t, part)| {
+        for ((iz, yx), row) in lin.voxels_of(t * ROWS, part.len() / c_in).zip(part.chunks_exact_mut(c_in)) {
+            let (oz, cz) = outs(iz, m);
             let (oy, cy) = outs(yx / n, m);
             let (ox, cx) = outs(yx % n, m);
             for &(z, kz) in &oz[..cz] {

@@ -22,6 +22,8 @@ pub(super) struct Layout {
     edge: usize,
     /// Row of each voxel (C order), or [`NONE`].
     index: Vec<u32>,
+    /// In-slab index (`y * edge + x`) of each row: the inverse of `index`.
+    voxels: Vec<u32>,
     /// First row of each z-slab; `start[edge]` is the number of rows.
     pub(super) start: Vec<usize>,
 }
@@ -37,13 +39,16 @@ impl Layout {
             start.push(start[start.len() - 1] + c);
         }
         let mut index = vec![NONE; plane * edge];
-        index.par_chunks_mut(plane).zip(need.par_chunks(plane)).enumerate().for_each(|(z, (slab, nd))| {
-            // Rows fit in u32: Decoder::new caps the output at 1024^3 voxels.
-            for (r, (i, _)) in (start[z] as u32..).zip(slab.iter_mut().zip(nd).filter(|(_, &b)| b)) {
-                *i = r;
+        let mut voxels = vec![0; start[edge]];
+        let slabs = index.par_chunks_mut(plane).zip(need.par_chunks(plane)).zip(by_slab(&start, &mut voxels, 1));
+        slabs.enumerate().for_each(|(z, ((slab, nd), vox))| {
+            // Rows and in-slab indices fit in u32: Decoder::new caps the output at 1024^3 voxels.
+            let stored = (0u32..).zip(slab.iter_mut().zip(nd)).filter(|(_, (_, &b))| b);
+            for ((r, v), (yx, (i, _))) in (start[z] as u32..).zip(vox).zip(stored) {
+                (*i, *v) = (r, yx);
             }
         });
-        Layout { edge, index, start }
+        Layout { edge, index, voxels, start }
     }
 
     /// Number of stored voxels.
@@ -64,18 +69,17 @@ impl Layout {
         &values[self.index[v] as usize * c..][..c]
     }
 
-    /// `values` (`c` per row) cut into the rows of each z-slab, paired with
-    /// the in-slab voxel indices (`y * edge + x`) stored there, for one
-    /// parallel task per slab.
-    pub(super) fn slabs<'a, T: Send>(&'a self, values: &'a mut [T], c: usize) -> Vec<(usize, &'a mut [T])> {
-        let mut parts = Vec::with_capacity(self.edge);
-        let mut rest = values;
-        for z in 0..self.edge {
-            let (part, tail) = rest.split_at_mut((self.start[z + 1] - self.start[z]) * c);
-            parts.push((z, part));
-            rest = tail;
-        }
-        parts
+    /// Rows `first..first + len` as (z-slab, in-slab index `y * edge + x`):
+    /// lets a parallel loop cut the rows into tasks of equal size, where
+    /// slabs differ in size and a coarse layer has only a few.
+    pub(super) fn voxels_of(&self, first: usize, len: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let mut z = self.start.partition_point(|&s| s <= first).saturating_sub(1);
+        (first..first + len).map(move |r| {
+            while self.start[z + 1] <= r {
+                z += 1;
+            }
+            (z, self.voxels[r] as usize)
+        })
     }
 
     /// The stored voxels of slab `z` as in-slab indices `y * edge + x`.
@@ -83,6 +87,18 @@ impl Layout {
         let plane = self.edge * self.edge;
         (0..plane).filter(move |&yx| self.index[z * plane + yx] != NONE)
     }
+}
+
+/// `values` (`c` per row) cut at the slab starts `start`.
+fn by_slab<'a, T>(start: &[usize], values: &'a mut [T], c: usize) -> Vec<&'a mut [T]> {
+    let mut parts = Vec::with_capacity(start.len());
+    let mut rest = values;
+    for w in start.windows(2) {
+        let (part, tail) = rest.split_at_mut((w[1] - w[0]) * c);
+        parts.push(part);
+        rest = tail;
+    }
+    parts
 }
 
 /// The inputs (edge `n`) that some stored output of `lout` (edge `2n`)
@@ -181,6 +197,24 @@ mod tests {
     use super::*;
     use crate::model::conv::taps;
     use crate::model::normals;
+
+    #[test]
+    fn rows_name_their_voxels_from_any_first_row() {
+        let edge = 8;
+        // Sparse enough that some slabs are empty.
+        let mut need: Vec<bool> = normals(6, 512).iter().map(|&u| u > 1.0).collect();
+        need[..3 * 64].iter_mut().for_each(|b| *b = false);
+        let l = Layout::new(&need, edge);
+        let all: Vec<(usize, usize)> = (0..edge).flat_map(|z| l.in_slab(z).map(move |yx| (z, yx))).collect();
+        assert_eq!(all.len(), l.rows());
+        for (r, &(z, yx)) in all.iter().enumerate() {
+            assert_eq!(l.index[z * 64 + yx] as usize, r);
+        }
+        for first in 0..l.rows() {
+            let got: Vec<(usize, usize)> = l.voxels_of(first, l.rows() - first).collect();
+            assert_eq!(got, all[first..], "from row {first}");
+        }
+    }
 
     #[test]
     fn pull_back_marks_exactly_the_read_inputs() {
