@@ -2,6 +2,8 @@
 //! learning rate; coordinates without a gradient this step can be skipped
 //! (their moments are left as they are).
 
+use rayon::prelude::*;
+
 /// Adam state for `n` parameters.
 #[derive(Clone, Debug)]
 pub struct Adam {
@@ -27,18 +29,15 @@ impl Adam {
 
     /// Applies the gradient `grad[i]` to `params[index[i]]` for every i.
     pub fn step_sparse(&mut self, params: &mut [f64], index: &[usize], grad: &[f64]) {
+        let rule = self.rule();
         for (&i, &g) in index.iter().zip(grad) {
-            if !g.is_finite() {
-                continue; // A non-finite gradient entry is a bug upstream; never let it into the parameters.
-            }
-            self.t[i] += 1;
-            let t = self.t[i] as i32;
-            self.m[i] = self.beta1 * self.m[i] + (1.0 - self.beta1) * g;
-            self.v[i] = self.beta2 * self.v[i] + (1.0 - self.beta2) * g * g;
-            let m_hat = self.m[i] / (1.0 - self.beta1.powi(t));
-            let v_hat = self.v[i] / (1.0 - self.beta2.powi(t));
-            params[i] -= self.lr * m_hat / (v_hat.sqrt() + self.eps);
+            rule.apply(&mut params[i], &mut self.m[i], &mut self.v[i], &mut self.t[i], g);
         }
+    }
+
+    /// The constants of one update.
+    fn rule(&self) -> Rule {
+        Rule { lr: self.lr, beta1: self.beta1, beta2: self.beta2, eps: self.eps }
     }
 
     /// The moments and per-coordinate step counts (to save a checkpoint).
@@ -51,16 +50,64 @@ impl Adam {
         (m.len() == v.len() && v.len() == t.len()).then(|| Adam { m, v, t, ..Adam::new(0, lr) })
     }
 
-    /// Applies a dense gradient.
+    /// Applies a dense gradient; coordinate by coordinate in parallel (a
+    /// serial part of every update otherwise).
     pub fn step(&mut self, params: &mut [f64], grad: &[f64]) {
-        let index: Vec<usize> = (0..params.len()).collect();
-        self.step_sparse(params, &index, grad);
+        let rule = self.rule();
+        let n = params.len().min(grad.len());
+        (&mut params[..n], &grad[..n], &mut self.m[..n], &mut self.v[..n], &mut self.t[..n])
+            .into_par_iter()
+            .with_min_len(4096)
+            .for_each(|(p, &g, m, v, t)| rule.apply(p, m, v, t, g));
+    }
+}
+
+/// Adam's constants for one step.
+#[derive(Clone, Copy)]
+struct Rule {
+    lr: f64,
+    beta1: f64,
+    beta2: f64,
+    eps: f64,
+}
+
+impl Rule {
+    /// Updates one coordinate `p` with moments `m`, `v` and count `t` by gradient `g`.
+    #[inline]
+    fn apply(self, p: &mut f64, m: &mut f64, v: &mut f64, t: &mut u32, g: f64) {
+        if !g.is_finite() {
+            return; // A non-finite gradient entry is a bug upstream; never let it into the parameters.
+        }
+        *t += 1;
+        let ti = *t as i32;
+        *m = self.beta1 * *m + (1.0 - self.beta1) * g;
+        *v = self.beta2 * *v + (1.0 - self.beta2) * g * g;
+        let m_hat = *m / (1.0 - self.beta1.powi(ti));
+        let v_hat = *v / (1.0 - self.beta2.powi(ti));
+        *p -= self.lr * m_hat / (v_hat.sqrt() + self.eps);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_parallel_dense_step_is_the_sparse_one_over_every_coordinate() {
+        let n = 10_000;
+        let x0: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let (mut a, mut b) = (x0.clone(), x0);
+        let (mut adam_a, mut adam_b) = (Adam::new(n, 0.01), Adam::new(n, 0.01));
+        let all: Vec<usize> = (0..n).collect();
+        for step in 0..3 {
+            let mut g: Vec<f64> = (0..n).map(|i| (i as f64 * 1.3 + step as f64).cos()).collect();
+            g[17] = f64::NAN;
+            adam_a.step(&mut a, &g);
+            adam_b.step_sparse(&mut b, &all, &g);
+        }
+        assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+        assert_eq!(adam_a.state().2, adam_b.state().2);
+    }
 
     #[test]
     fn minimises_a_quadratic() {

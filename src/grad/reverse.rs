@@ -258,11 +258,12 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     // (1b) Light-depth adjoints -> density adjoints, back along each node's shadow ray.
     if let (Some(per_light), Some(light_depth)) = (depths, frozen.light_depth()) {
         for (l, primal) in per_light.iter().enumerate().filter_map(|(l, g)| g.as_ref().map(|g| (l, g))) {
-            let first = first_depth + l * depth_nodes;
-            let mut adjoint = total[first..first + depth_nodes].to_vec();
-            light_depth.pad_adjoints(&mut adjoint);
-            let active: Vec<usize> = light_depth.nodes().filter(|&v| adjoint[v] != 0.0).collect();
-            sweep(&active, voxels, &mut total, |scratch, v| {
+            // The light's adjoints in place (nothing reads them after), the voxels' apart.
+            let (density_adjoint, rest) = total.split_at_mut(first_depth + l * depth_nodes);
+            let adjoint = &mut rest[..depth_nodes];
+            light_depth.pad_adjoints(adjoint);
+            let active: Vec<usize> = light_depth.nodes_where(|v| adjoint[v] != 0.0);
+            sweep(&active, voxels, &mut density_adjoint[..voxels], |scratch, v| {
                 let add = &mut |voxel: usize, a| scratch.add(voxel as u32, a);
                 light_depth.adjoint(frozen.marcher(), density, l, v, primal.data[v], adjoint[v], add);
             });

@@ -78,12 +78,12 @@ impl Level {
     /// `photons`, `spp` and `seed`; freeze it with [`Level::freeze`] (or
     /// `Frozen::new(&scene, Some(&level.support))`).
     pub fn scene_at(&self, decoded: &Grid<f64>, photons: u64, spp: u32, seed: u64) -> Scene {
-        let mut scene = self.scene.clone();
-        scene.density = self.grid(decoded.clone());
-        scene.render.photons = photons;
-        scene.render.spp = spp;
-        scene.render.seed = seed;
-        scene
+        // Field by field: copying the level's own density only to replace it is a serial part of every update.
+        let s = &self.scene;
+        let density = if self.pooled { pool(decoded) } else { decoded.clone() };
+        let mut render = s.render.clone();
+        (render.photons, render.spp, render.seed) = (photons, spp, seed);
+        Scene { density, medium: s.medium.clone(), lights: s.lights.clone(), cameras: s.cameras.clone(), render }
     }
 
     /// This level with targets shifted so that the residual of `images` is

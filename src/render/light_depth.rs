@@ -76,13 +76,19 @@ impl LightDepth {
                 }
             });
         }
-        let marched: Vec<bool> = (0..needed.len()).map(|v| needed[v] && !is_pad(shape, v)).collect();
+        let marched: Vec<bool> =
+            (0..needed.len()).into_par_iter().with_min_len(4096).map(|v| needed[v] && !is_pad(shape, v)).collect();
         LightDepth { lo, hi, shape, marched, lights: lights.to_vec(), scale, seed }
     }
 
     /// The nodes that carry a depth (flat indices into the depth grids).
     pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
         (0..self.marched.len()).filter(|&v| self.marched[v])
+    }
+
+    /// The nodes that carry a depth and pass `keep`, in order (in parallel).
+    pub fn nodes_where(&self, keep: impl Fn(usize) -> bool + Sync) -> Vec<usize> {
+        (0..self.marched.len()).into_par_iter().with_min_len(4096).filter(|&v| self.marched[v] && keep(v)).collect()
     }
 
     /// Number of values of one depth grid.
