@@ -81,12 +81,8 @@ impl LightDepth {
         LightDepth { lo, hi, shape, marched, lights: lights.to_vec(), scale, seed }
     }
 
-    /// The nodes that carry a depth (flat indices into the depth grids).
-    pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
-        (0..self.marched.len()).filter(|&v| self.marched[v])
-    }
-
-    /// The nodes that carry a depth and pass `keep`, in order (in parallel).
+    /// The nodes that carry a depth and pass `keep` (flat indices into the
+    /// depth grids), in order; found in parallel.
     pub fn nodes_where(&self, keep: impl Fn(usize) -> bool + Sync) -> Vec<usize> {
         (0..self.marched.len()).into_par_iter().with_min_len(4096).filter(|&v| self.marched[v] && keep(v)).collect()
     }
@@ -321,7 +317,7 @@ mod tests {
         let marcher = Marcher::new(&density, majorant, 0.5 * density.voxel_size().min());
         let light = Light { position: Vec3::new(0.3, 2.5, -0.4), intensity: 1.0 };
         let depth = LightDepth::new(&marcher, &density, 2, std::slice::from_ref(&light), scale, 7);
-        let nodes: Vec<usize> = depth.nodes().collect();
+        let nodes: Vec<usize> = depth.nodes_where(|_| true);
         let plain = depth.depths(&marcher, &density);
         let leaves = Grid::new(
             density.lo,
