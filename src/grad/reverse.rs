@@ -18,6 +18,7 @@
 use super::loss::mse_residuals;
 use crate::ad::tape::{self, Var};
 use crate::image::Image;
+use crate::par;
 use crate::render::frozen::Frozen;
 use crate::render::splat::{phase_towards, Estimate};
 use crate::rng::{Purpose, Rng};
@@ -163,7 +164,10 @@ fn sweep(indices: &[usize], leaves: usize, total: &mut [f64], unit: impl Fn(&mut
         })
         .collect();
     merge(&parts.iter().map(|(part, _)| part.as_slice()).collect::<Vec<_>>(), total);
-    parts.iter().map(|&(_, p)| p).max().unwrap_or(0)
+    let peak = parts.iter().map(|&(_, p)| p).max().unwrap_or(0);
+    // Thousands of parts: freed on one thread, a serial part of every sweep.
+    parts.into_par_iter().for_each(drop);
+    peak
 }
 
 /// Adds every part's `(leaf, adjoint)` pairs (each sorted by leaf) to
@@ -230,7 +234,7 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
             .collect::<Vec<_>>()
     });
     let leaves = first_depth + depths.map_or(0, |d| d.len() * depth_nodes);
-    let mut total = vec![0.0; leaves];
+    let mut total = par::filled(leaves, 0.0);
 
     // (1) Pixels.
     // Only cameras with a target are differentiated (later ones are held out).

@@ -18,7 +18,9 @@ use crate::error::{Error, Result};
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::model::Model;
 use crate::optim::Adam;
+use crate::par;
 use crate::volume::Grid;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// How the refinement runs.
@@ -158,18 +160,24 @@ pub fn refine_density(
     let mut fields = vec![Field::new((0..hull.len()).collect(), settings.lr, lr_a)];
     fields.extend(settings.blocks.iter().map(|&b| Field::new(block_of(base.shape, &hull, b), settings.lr, lr_a)));
     let (mut g, mut adam_g) = ([0.0], Adam::new(1, settings.lr));
+    // Each voxel's place in `hull` (`usize::MAX`: outside it).
+    let mut slot = vec![usize::MAX; base.data.len()];
+    hull.iter().enumerate().for_each(|(j, &i)| slot[i] = j);
+    // In parallel over the voxels, each voxel's terms added in field order.
     let density_of = |fields: &[Field], g: f64| {
-        let mut d = base.clone();
-        let mut additive = vec![0.0; hull.len()];
-        let mut log = vec![g; hull.len()];
-        for f in fields {
-            for (j, &k) in f.of.iter().enumerate() {
-                log[j] += f.s[k];
-                additive[j] += f.a[k];
-            }
-        }
-        hull.iter().enumerate().for_each(|(j, &i)| d.data[i] = d.data[i] * log[j].exp() + additive[j]);
-        (d, additive)
+        let (log, additive): (Vec<f64>, Vec<f64>) = (0..hull.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|j| fields.iter().fold((g, 0.0), |(log, add), f| (log + f.s[f.of[j]], add + f.a[f.of[j]])))
+            .unzip();
+        let data = base
+            .data
+            .par_iter()
+            .with_min_len(4096)
+            .zip(&slot)
+            .map(|(&d, &j)| if j == usize::MAX { d } else { d * log[j].exp() + additive[j] })
+            .collect();
+        (Grid::new(base.lo, base.hi, base.shape, data), additive)
     };
     let window = (settings.average * settings.updates as f64).round() as usize;
     let (mut sum, mut summed) = (vec![0.0; base.data.len()], 0usize);
@@ -187,9 +195,15 @@ pub fn refine_density(
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
         let (frozen, shifted) = level.freeze(&scene, &density, settings.decorrelate.then_some(seed ^ 1));
-        observe(&log_row(first + u, problem, &level, mask, &density, &frozen, start.elapsed().as_secs_f64()));
+        let wall_s = start.elapsed().as_secs_f64();
         let targets = &shifted.as_ref().unwrap_or(&level).targets;
-        let grad = reverse_gradient(&frozen, targets, Subset::full()).grad;
+        // The log row is serial work: a helper thread computes it while the gradient runs.
+        let (reverse, row) = par::alongside(
+            || reverse_gradient(&frozen, targets, Subset::full()),
+            || log_row(first + u, problem, &level, mask, &density, &frozen, wall_s),
+        );
+        observe(&row);
+        let grad = reverse.grad;
         let n = hull.len().max(1) as f64;
         // d density / d (any log-factor) = the multiplicative part, density - additive.
         let image_part: Vec<f64> =

@@ -23,6 +23,7 @@ use crate::grad::loss::mse;
 use crate::image::Image;
 use crate::model::Model;
 use crate::optim::Adam;
+use crate::par;
 use crate::render::frozen::Frozen;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
@@ -185,9 +186,14 @@ pub fn train(
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
         let scene = level.scene_at(&decoded, settings.photons, settings.spp, seed);
         let (frozen, shifted) = level.freeze(&scene, &decoded, settings.decorrelate.then_some(seed ^ DECORRELATE_SEED));
-        let row = log_row(it, problem, level, &model.mask, &decoded, &frozen, start.elapsed().as_secs_f64());
+        let wall_s = start.elapsed().as_secs_f64();
+        // The log row is serial work: a helper thread computes it while the gradient runs.
+        let (g, row) = par::alongside(
+            || parameter_gradient(shifted.as_ref().unwrap_or(level), model, &frozen, &estimator, it, &mut rng),
+            || log_row(it, problem, level, &model.mask, &decoded, &frozen, wall_s),
+        );
         observe(&row, model, &frozen.images);
-        let mut g = parameter_gradient(shifted.as_ref().unwrap_or(level), model, &frozen, &estimator, it, &mut rng)?;
+        let mut g = g?;
         if settings.sparsity > 0.0 {
             add_sparsity_gradient(model, settings.sparsity, &mut g.latent, &mut g.weights);
         }

@@ -215,27 +215,36 @@ fn for_each_pad(shape: [usize; 3], axis: usize, mut visit: impl FnMut(usize, [(u
     }
 }
 
+/// Pad nodes per parallel task in [`extrapolate_pads`].
+const PAD_PIECE: usize = 256;
+
 /// Fills the pads of a padded grid of `shape` from its inner nodes, along
 /// x, then y, then z (corners and edges extrapolate already filled pads):
 /// the values [`for_each_pad`] would write, computed in parallel (the pads
-/// across one axis read no pad across that axis).
+/// across one axis read no pad across that axis). Each axis is one
+/// parallel loop over pieces of its two faces: the faces across z are one
+/// block of the grid, and a loop over blocks would fill them on the
+/// calling thread.
 fn extrapolate_pads<R: Real>(shape: [usize; 3], data: &mut [R]) {
     for axis in [0, 1, 2] {
         let (stride, n, [(da, wa), (db, wb)]) = pad_rule(shape, axis);
+        let blocks = data.len() / (stride * n);
+        let mut pieces = Vec::with_capacity(2 * blocks * stride.div_ceil(PAD_PIECE));
         // Each block of `n` slices of `stride` nodes holds its two pad slices, 0 and n - 1.
-        data.par_chunks_mut(stride * n).for_each(|block| {
+        for block in data.chunks_mut(stride * n) {
             let (first, rest) = block.split_at_mut(stride);
-            fill_face(first, &rest[(da - 1) * stride..da * stride], &rest[(db - 1) * stride..db * stride], wa, wb);
-            let (rest, last) = block.split_at_mut((n - 1) * stride);
-            let (a, b) = (n - 1 - da, n - 1 - db);
-            fill_face(last, &rest[a * stride..(a + 1) * stride], &rest[b * stride..(b + 1) * stride], wa, wb);
+            let (inner, last) = rest.split_at_mut((n - 2) * stride);
+            let slice = |s: usize| &inner[s * stride..(s + 1) * stride];
+            for (face, near, far) in
+                [(first, slice(da - 1), slice(db - 1)), (last, slice(n - 2 - da), slice(n - 2 - db))]
+            {
+                pieces.extend(face.chunks_mut(PAD_PIECE).zip(near.chunks(PAD_PIECE)).zip(far.chunks(PAD_PIECE)));
+            }
+        }
+        pieces.into_par_iter().for_each(|((face, near), far)| {
+            face.iter_mut().zip(near).zip(far).for_each(|((f, a), b)| *f = *a * wa + *b * wb);
         });
     }
-}
-
-/// `face = near * wa + far * wb`, node by node.
-fn fill_face<R: Real>(face: &mut [R], near: &[R], far: &[R], wa: f64, wb: f64) {
-    face.par_iter_mut().with_min_len(1024).zip(near).zip(far).for_each(|((f, a), b)| *f = *a * wa + *b * wb);
 }
 
 #[cfg(test)]

@@ -83,8 +83,9 @@ impl SplatGeometry {
             ((extent[a] / cell).round() as usize).clamp(1, density.shape[2 - a])
         };
         let shape = [axis(2), axis(1), axis(0)];
-        let nodes = Grid::new(density.lo, density.hi, shape, vec![0.0; shape.iter().product()]);
-        let slots = Grid::new(density.lo, density.hi, shape, vec![NO_SLOT; shape.iter().product()]);
+        let len = shape.iter().product();
+        let nodes = Grid::new(density.lo, density.hi, shape, par::filled(len, 0.0));
+        let slots = Grid::new(density.lo, density.hi, shape, par::filled(len, NO_SLOT));
         let cell = nodes.voxel_size();
         SplatGeometry { nodes, slots, used: 0, radius, cell }
     }

@@ -8,10 +8,12 @@
 
 use crate::ad::Real;
 use crate::math::Vec3;
+use crate::par;
+use rayon::prelude::*;
 
 /// Values on a regular grid over the box `[lo, hi]`, stored in C order of
 /// shape `(nz, ny, nx)`: index `(k * ny + j) * nx + i`.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Grid<T> {
     /// Lower corner of the box (world units).
     pub lo: Vec3,
@@ -23,6 +25,13 @@ pub struct Grid<T> {
     pub data: Vec<T>,
     /// Voxels per world unit along x, y, z (cached for lookups).
     to_voxel: Vec3,
+}
+
+/// The values are copied in parallel where large ([`par::cloned`]).
+impl<T: Clone + Send + Sync> Clone for Grid<T> {
+    fn clone(&self) -> Self {
+        Grid { data: par::cloned(&self.data), ..*self }
+    }
 }
 
 /// The 8 voxels (flat indices) and trilinear weights that make up the value
@@ -169,9 +178,10 @@ impl<R: Real> Grid<R> {
 }
 
 impl Grid<f64> {
-    /// Largest value (0 for an all-zero grid).
+    /// Largest value (0 for an all-zero grid). In parallel: every render
+    /// asks for it, and the maximum does not depend on the order.
     pub fn max_value(&self) -> f64 {
-        self.data.iter().fold(0.0, |m, &v| m.max(v))
+        self.data.par_iter().with_min_len(1 << 14).fold(|| 0.0, |m: f64, &v| m.max(v)).reduce(|| 0.0, f64::max)
     }
 }
 
