@@ -35,24 +35,30 @@ pub fn concat<T: Clone + Send + Sync>(parts: Vec<Vec<T>>) -> Vec<T> {
         .collect()
 }
 
+/// Bytes per task of the copies below ([`cloned`], [`filled`]): waking
+/// the pool costs about as much as copying this much, so a copy under two
+/// tasks' worth stays on the calling thread.
+const COPY_TASK_BYTES: usize = 1 << 18;
+
+/// Items of `T` per task of a copy ([`COPY_TASK_BYTES`]).
+fn copy_task_len<T>() -> usize {
+    (COPY_TASK_BYTES / std::mem::size_of::<T>().max(1)).max(1)
+}
+
 /// A copy of `values`, made in parallel where large: a grid of 64^3
 /// numbers copied on one thread is a serial part of every update.
 pub fn cloned<T: Clone + Send + Sync>(values: &[T]) -> Vec<T> {
-    if std::mem::size_of_val(values) < SERIAL_BELOW_BYTES {
+    let task = copy_task_len::<T>();
+    if values.len() < 2 * task {
         return values.to_vec();
     }
-    values.par_iter().with_min_len(1024).cloned().collect()
+    values.par_iter().with_min_len(task).cloned().collect()
 }
-
-/// Bytes per task in [`filled`]: 4096 numbers, or 63 dual numbers of 64
-/// lanes (a loop under two tasks' worth runs on the calling thread).
-const FILLED_TASK_BYTES: usize = 1 << 15;
 
 /// `len` copies of `value`, written in parallel: a grid of dual numbers
 /// filled on one thread is a serial part of every pass.
 pub fn filled<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
-    let min_len = (FILLED_TASK_BYTES / std::mem::size_of::<T>().max(1)).max(1);
-    (0..len).into_par_iter().with_min_len(min_len).map(|_| value.clone()).collect()
+    (0..len).into_par_iter().with_min_len(copy_task_len::<T>()).map(|_| value.clone()).collect()
 }
 
 /// `(a(), b())`, the two running side by side and feeding the same thread
@@ -91,9 +97,12 @@ mod tests {
 
     #[test]
     fn cloned_and_filled_are_the_serial_ones() {
-        for len in [0, 5, 40_000] {
+        // Under and over two tasks' worth of 8 and of 520 bytes.
+        for len in [0, 5, 100_000] {
             let values: Vec<u64> = (0..len as u64).map(|i| i * 2_654_435_761 % 1009).collect();
             assert_eq!(cloned(&values), values, "len {len}");
+        }
+        for len in [0, 5, 2_000] {
             assert_eq!(filled(len, [7u64; 65]), vec![[7u64; 65]; len], "len {len}");
         }
     }
