@@ -215,34 +215,33 @@ fn for_each_pad(shape: [usize; 3], axis: usize, mut visit: impl FnMut(usize, [(u
     }
 }
 
-/// Pad nodes per parallel task in [`extrapolate_pads`].
+/// Pad nodes per parallel task of one face in [`extrapolate_pads`].
 const PAD_PIECE: usize = 256;
 
 /// Fills the pads of a padded grid of `shape` from its inner nodes, along
 /// x, then y, then z (corners and edges extrapolate already filled pads):
 /// the values [`for_each_pad`] would write, computed in parallel (the pads
-/// across one axis read no pad across that axis). Each axis is one
-/// parallel loop over pieces of its two faces: the faces across z are one
-/// block of the grid, and a loop over blocks would fill them on the
+/// across one axis read no pad across that axis). In parallel over the
+/// blocks of the grid that hold two faces, and over pieces of a face: the
+/// faces across z are one block, which would otherwise fill them on the
 /// calling thread.
 fn extrapolate_pads<R: Real>(shape: [usize; 3], data: &mut [R]) {
     for axis in [0, 1, 2] {
         let (stride, n, [(da, wa), (db, wb)]) = pad_rule(shape, axis);
-        let blocks = data.len() / (stride * n);
-        let mut pieces = Vec::with_capacity(2 * blocks * stride.div_ceil(PAD_PIECE));
         // Each block of `n` slices of `stride` nodes holds its two pad slices, 0 and n - 1.
-        for block in data.chunks_mut(stride * n) {
+        data.par_chunks_mut(stride * n).for_each(|block| {
             let (first, rest) = block.split_at_mut(stride);
             let (inner, last) = rest.split_at_mut((n - 2) * stride);
             let slice = |s: usize| &inner[s * stride..(s + 1) * stride];
             for (face, near, far) in
                 [(first, slice(da - 1), slice(db - 1)), (last, slice(n - 2 - da), slice(n - 2 - db))]
             {
-                pieces.extend(face.chunks_mut(PAD_PIECE).zip(near.chunks(PAD_PIECE)).zip(far.chunks(PAD_PIECE)));
+                let pieces =
+                    face.par_chunks_mut(PAD_PIECE).zip(near.par_chunks(PAD_PIECE)).zip(far.par_chunks(PAD_PIECE));
+                pieces.for_each(|((face, near), far)| {
+                    face.iter_mut().zip(near).zip(far).for_each(|((f, a), b)| *f = *a * wa + *b * wb);
+                });
             }
-        }
-        pieces.into_par_iter().for_each(|((face, near), far)| {
-            face.iter_mut().zip(near).zip(far).for_each(|((f, a), b)| *f = *a * wa + *b * wb);
         });
     }
 }
