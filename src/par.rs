@@ -35,13 +35,14 @@ pub fn concat<T: Clone + Send + Sync>(parts: Vec<Vec<T>>) -> Vec<T> {
         .collect()
 }
 
-/// Bytes per task of the copies below ([`cloned`], [`filled`]): waking
-/// the pool costs about as much as copying this much, so a copy under two
-/// tasks' worth stays on the calling thread.
+/// Bytes per task of a loop that does as little per item as a copy
+/// ([`cloned`], [`filled`], a maximum): waking the pool costs about as much
+/// as copying this much, so a loop under two tasks' worth stays on the
+/// calling thread.
 const COPY_TASK_BYTES: usize = 1 << 18;
 
-/// Items of `T` per task of a copy ([`COPY_TASK_BYTES`]).
-fn copy_task_len<T>() -> usize {
+/// Items of `T` per task of such a loop ([`COPY_TASK_BYTES`]).
+pub fn copy_task_len<T>() -> usize {
     (COPY_TASK_BYTES / std::mem::size_of::<T>().max(1)).max(1)
 }
 

@@ -181,7 +181,11 @@ impl Grid<f64> {
     /// Largest value (0 for an all-zero grid). In parallel: every render
     /// asks for it, and the maximum does not depend on the order.
     pub fn max_value(&self) -> f64 {
-        self.data.par_iter().with_min_len(1 << 15).fold(|| 0.0, |m: f64, &v| m.max(v)).reduce(|| 0.0, f64::max)
+        self.data
+            .par_iter()
+            .with_min_len(par::copy_task_len::<f64>())
+            .fold(|| 0.0, |m: f64, &v| m.max(v))
+            .reduce(|| 0.0, f64::max)
     }
 }
 
