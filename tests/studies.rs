@@ -103,8 +103,9 @@ fn photon_diagnostics_smoke_run_compares_every_order() {
         let total: f64 = weights.iter().sum();
         for (cell, fraction) in r[2..].iter().zip([0.001, 0.01, 0.1]) {
             let k = ((weights.len() as f64 * fraction) as usize).clamp(1, weights.len());
-            let (_, _, top) = weights.select_nth_unstable_by(weights.len() - k, |a, b| a.total_cmp(b));
-            let share = (top.iter().sum::<f64>() + weights[weights.len() - k]) / total;
+            let n = weights.len();
+            let (_, kth, top) = weights.select_nth_unstable_by(n - k, |a, b| a.total_cmp(b));
+            let share = (top.iter().sum::<f64>() + *kth) / total;
             let written: f64 = cell.parse().unwrap();
             assert!((written - share).abs() <= 1e-9 * share, "order {order}, top {fraction}: {written} vs {share}");
         }
