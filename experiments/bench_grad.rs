@@ -98,6 +98,10 @@ fn run(mut args: Args) -> Result<()> {
         args.repeats = 1;
         args.directions = 8;
     }
+    args.res.iter().try_for_each(|&r| experiment::check_decoder_res(r))?;
+    if let Some(k) = args.lanes.iter().find(|k| !dualphoton::grad::LANES.contains(k)) {
+        return Err(Error(format!("--lanes: {k} is not one of {:?}", dualphoton::grad::LANES)));
+    }
     let run = Run::start(&args.out)?;
     let mut rows = vec![];
     let mut md = String::from(

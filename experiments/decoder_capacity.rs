@@ -74,6 +74,7 @@ fn run(mut args: Args) -> Result<()> {
         args.iterations = 20;
         args.every = 10;
     }
+    experiment::check_decoder_res(args.res)?;
     let run = Run::start(&args.out)?;
     // The hull comes from the same images the main job carves it from.
     let problem = paper_problem(args.res, args.seed, if args.smoke { 20_000 } else { 1_000_000 }, 0);

@@ -78,6 +78,7 @@ fn run(mut args: Args) -> Result<()> {
         args.photons = 20_000;
         args.path_spp = 64;
     }
+    experiment::check_res(args.res)?;
     let run = Run::start(&args.out)?;
     let mut scene = rig::paper_training_scene(plume(args.res, args.seed), args.res);
     scene.render.photons = args.photons;

@@ -24,7 +24,7 @@
 //! }
 //! ```
 
-use crate::error::{exit_code, Result};
+use crate::error::{exit_code, Error, Result};
 use crate::io::manifest::write_manifest;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -38,6 +38,25 @@ use std::time::Instant;
 pub fn main<A: clap::Parser>(run: impl FnOnce(A) -> Result<()>) -> ExitCode {
     crate::process::keep_freed_memory();
     exit_code(run(A::parse()))
+}
+
+/// The largest grid edge an experiment accepts (the decoder's largest).
+pub const MAX_RES: usize = 1024;
+
+/// Checks an experiment's `--res` (grid edge, and image size where the
+/// rig's cameras use it) before any work: from 2 to [`MAX_RES`].
+pub fn check_res(res: usize) -> Result<()> {
+    if !(2..=MAX_RES).contains(&res) {
+        return Err(Error(format!("--res: {res} is not a grid edge from 2 to {MAX_RES}")));
+    }
+    Ok(())
+}
+
+/// Checks the `--res` of an experiment that fits the paper's decoder before
+/// any work: an edge the decoder supports (see
+/// [`crate::model::Decoder::paper_small`]), the error naming the option.
+pub fn check_decoder_res(res: usize) -> Result<()> {
+    crate::model::Decoder::paper_small(res).map(|_| ()).map_err(|e| Error(format!("--res: {e}")))
 }
 
 /// One run of an experiment: its output folder and its clock.

@@ -111,6 +111,10 @@ fn run(mut args: Args) -> Result<()> {
     if args.smoke {
         args.smoke();
     }
+    args.res
+        .iter()
+        .chain(std::iter::once(&args.thick_res).filter(|&&r| r > 0))
+        .try_for_each(|&r| experiment::check_res(r))?;
     let run = Run::start(&args.out)?;
     let (mut tables, mut series) = (Tables::default(), vec![]);
     let mut summary =

@@ -83,6 +83,7 @@ fn run(mut args: Args) -> Result<()> {
         args.repeats = 1;
         args.reference_dir = args.out.join("reference_16");
     }
+    experiment::check_decoder_res(args.res)?;
     if !(args.budget > 0.0 && args.budget.is_finite()) {
         return Err(Error(format!("--budget: {} is not a positive number of seconds", args.budget)));
     }

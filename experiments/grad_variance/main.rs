@@ -130,6 +130,7 @@ fn run(mut args: Args) -> Result<()> {
     if args.smoke {
         (args.res, args.seeds, args.reference_seeds, args.midway) = (16, 3, 2, 2);
     }
+    experiment::check_decoder_res(args.res)?;
     if args.seeds < 2 {
         return Err(Error::new("--seeds: need at least 2 to measure a variance"));
     }
