@@ -12,10 +12,11 @@ use clap::Parser;
 use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::stats::median;
+use dualphoton::experiment::{self, Run};
 use dualphoton::grad::forward::{coordinate_gradient, random_gradient, Directions};
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
 use dualphoton::grad::Estimator;
-use dualphoton::io::manifest::{peak_memory_mib, reset_peak_memory, write_manifest};
+use dualphoton::io::manifest::{peak_memory_mib, reset_peak_memory};
 use dualphoton::recon::level::Level;
 use dualphoton::recon::param_grad::latent_exact;
 use dualphoton::recon::problem::{paper_problem, Problem};
@@ -76,8 +77,7 @@ struct Manifest<'a> {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    dualphoton::error::exit_code(run(Args::parse()))
+    experiment::main(run)
 }
 
 /// One measured gradient.
@@ -98,8 +98,11 @@ fn run(mut args: Args) -> Result<()> {
         args.repeats = 1;
         args.directions = 8;
     }
-    std::fs::create_dir_all(&args.out)?;
-    let started = Instant::now();
+    args.res.iter().try_for_each(|&r| experiment::check_decoder_res(r))?;
+    if let Some(k) = args.lanes.iter().find(|k| !dualphoton::grad::LANES.contains(k)) {
+        return Err(Error(format!("--lanes: {k} is not one of {:?}", dualphoton::grad::LANES)));
+    }
+    let run = Run::start(&args.out)?;
     let mut rows = vec![];
     let mut md = String::from(
         "# Cost of one gradient, paper rig (4 cameras, 300000 photons)\n\n\
@@ -135,7 +138,7 @@ fn run(mut args: Args) -> Result<()> {
         }
         md.push('\n');
     }
-    let mut csv = csv::Writer::from_path(args.out.join("bench.csv")).map_err(|e| Error(e.to_string()))?;
+    let mut csv = csv::Writer::from_path(run.path("bench.csv")).map_err(|e| Error(e.to_string()))?;
     csv.write_record([
         "res",
         "estimator",
@@ -163,11 +166,10 @@ fn run(mut args: Args) -> Result<()> {
         .map_err(|e| Error(e.to_string()))?;
     }
     csv.flush()?;
-    let _ =
-        writeln!(md, "Regenerate: `cargo run --release --bin bench_grad` ({:.0} s).", started.elapsed().as_secs_f64());
-    std::fs::write(args.out.join("summary.md"), &md)?;
+    let _ = writeln!(md, "Regenerate: `cargo run --release --bin bench_grad` ({:.0} s).", run.seconds());
+    std::fs::write(run.path("summary.md"), &md)?;
     let manifest = Manifest { settings: &args, peak_reset_supported: reset_peak_memory() };
-    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
+    run.write_manifest(&manifest)?;
     print!("{md}");
     Ok(())
 }

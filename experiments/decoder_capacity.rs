@@ -14,7 +14,7 @@ use clap::Parser;
 use dualphoton::error::Result;
 use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
 use dualphoton::eval::metrics::{hull_stats, pearson, rel_l1};
-use dualphoton::io::manifest::write_manifest;
+use dualphoton::experiment::{self, Run};
 use dualphoton::io::npy;
 use dualphoton::io::rows::write_rows;
 use dualphoton::optim::Adam;
@@ -24,7 +24,6 @@ use dualphoton::scene::rig;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Parser, Serialize)]
 #[command(about = "Fit the latent and decoder straight to the true density: the model's capacity")]
@@ -66,8 +65,7 @@ struct Row {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    dualphoton::error::exit_code(run(Args::parse()))
+    experiment::main(run)
 }
 
 fn run(mut args: Args) -> Result<()> {
@@ -76,8 +74,8 @@ fn run(mut args: Args) -> Result<()> {
         args.iterations = 20;
         args.every = 10;
     }
-    std::fs::create_dir_all(&args.out)?;
-    let started = Instant::now();
+    experiment::check_decoder_res(args.res)?;
+    let run = Run::start(&args.out)?;
     // The hull comes from the same images the main job carves it from.
     let problem = paper_problem(args.res, args.seed, if args.smoke { 20_000 } else { 1_000_000 }, 0);
     let mut model = initial_model(&problem.scene, &problem.images[..rig::HELD_OUT_CAMERA], args.seed)?;
@@ -114,11 +112,11 @@ fn run(mut args: Args) -> Result<()> {
         adam_w.step(&mut model.w, &gw);
     }
     eprintln!();
-    write_rows(&args.out.join("capacity.csv"), &rows)?;
+    write_rows(&run.path("capacity.csv"), &rows)?;
     // The fitted density seen by the cameras: how well the best the model can
     // hold explains the images, the ceiling of a fit through the renderer.
     let fitted = model.density(&problem.scene.density);
-    npy::write_f32(&args.out.join("density_fitted.npy"), &fitted.shape, &fitted.data)?;
+    npy::write_f32(&run.path("density_fitted.npy"), &fitted.shape, &fitted.data)?;
     let judge = if args.smoke {
         FitQualitySettings { photons: 20_000, spp: 2, ..Default::default() }
     } else {
@@ -126,7 +124,7 @@ fn run(mut args: Args) -> Result<()> {
     };
     eprintln!("judging the fitted density's images ({} photons, {} spp) ...", judge.photons, judge.spp);
     let fit = fit_quality(&problem.scene, &fitted, FitTarget::Truth(&problem.truth), rig::HELD_OUT_CAMERA, &judge)?;
-    write_rows(&args.out.join("fit_quality.csv"), &fit)?;
+    write_rows(&run.path("fit_quality.csv"), &fit)?;
     let t = hull_stats(truth, &mask);
     let last = rows.last().expect("at least one row");
     let mut md = format!(
@@ -151,13 +149,9 @@ fn run(mut args: Args) -> Result<()> {
         judge.spp,
         fit_quality_markdown(&fit)
     );
-    let _ = writeln!(
-        md,
-        "\nRegenerate: `cargo run --release --bin decoder_capacity` ({:.0} s).",
-        started.elapsed().as_secs_f64()
-    );
-    std::fs::write(args.out.join("summary.md"), &md)?;
-    write_manifest(&args.out.join("manifest.json"), &args, started.elapsed().as_secs_f64())?;
+    let _ = writeln!(md, "\nRegenerate: `cargo run --release --bin decoder_capacity` ({:.0} s).", run.seconds());
+    std::fs::write(run.path("summary.md"), &md)?;
+    run.write_manifest(&args)?;
     print!("{md}");
     Ok(())
 }

@@ -2,6 +2,7 @@
 //! `results/table1/log.csv` -> `results/table1/fig5_loss.svg` (`--dir` to change).
 
 use clap::Parser;
+use dualphoton::error::Error;
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -13,16 +14,11 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    let args = Args::parse();
-    match dualphoton::io::figures::loss_curves(&args.dir.join("log.csv"), &args.dir.join("fig5_loss.svg")) {
-        Ok(()) => {
-            eprintln!("wrote {}", args.dir.join("fig5_loss.svg").display());
-            std::process::ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("error: {e} (run `cargo run --release --bin experiment_table1` first)");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    dualphoton::experiment::main(|args: Args| {
+        let out = args.dir.join("fig5_loss.svg");
+        dualphoton::io::figures::loss_curves(&args.dir.join("log.csv"), &out)
+            .map_err(|e| Error(format!("{e} (run `cargo run --release --bin experiment_table1` first)")))?;
+        eprintln!("wrote {}", out.display());
+        Ok(())
+    })
 }

@@ -29,12 +29,7 @@ fn run(args: &Args) -> Result<()> {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    match run(&Args::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e} (run `cargo run --release --bin experiment_table1` first)");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    dualphoton::experiment::main(|args: Args| {
+        run(&args).map_err(|e| Error(format!("{e} (run `cargo run --release --bin experiment_table1` first)")))
+    })
 }

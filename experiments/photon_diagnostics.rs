@@ -13,8 +13,8 @@ use dualphoton::data::plume::plume;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::{reference_noise, rel_mean_diff};
 use dualphoton::eval::sweep::ERROR_BLOCK;
+use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
-use dualphoton::io::manifest::write_manifest;
 use dualphoton::io::rows::write_rows;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path, PathOptions};
@@ -24,7 +24,6 @@ use dualphoton::scene::rig;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Parser, Serialize)]
 #[command(about = "Photon mapping against the path tracer order by order, and the photon estimate's heavy tail")]
@@ -70,8 +69,7 @@ struct TailRow {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    dualphoton::error::exit_code(run(Args::parse()))
+    experiment::main(run)
 }
 
 fn run(mut args: Args) -> Result<()> {
@@ -80,8 +78,8 @@ fn run(mut args: Args) -> Result<()> {
         args.photons = 20_000;
         args.path_spp = 64;
     }
-    std::fs::create_dir_all(&args.out)?;
-    let started = Instant::now();
+    experiment::check_res(args.res)?;
+    let run = Run::start(&args.out)?;
     let mut scene = rig::paper_training_scene(plume(args.res, args.seed), args.res);
     scene.render.photons = args.photons;
     scene.render.seed = args.seed;
@@ -136,8 +134,8 @@ fn run(mut args: Args) -> Result<()> {
         })
         .collect();
 
-    write_rows(&args.out.join("orders.csv"), &orders)?;
-    write_rows(&args.out.join("tails.csv"), &tails)?;
+    write_rows(&run.path("orders.csv"), &orders)?;
+    write_rows(&run.path("tails.csv"), &tails)?;
     let mut md = format!(
         "# Photon-map diagnostics ({}^3 paper rig, 4 training cameras, {} photons, default kernel)\n\n\
          | order | block rel. RMSE vs path tracer | path tracer's own noise | image-sum difference |\n|---|---|---|---|\n",
@@ -168,13 +166,9 @@ fn run(mut args: Args) -> Result<()> {
             100.0 * t.top_10_percent
         );
     }
-    let _ = writeln!(
-        md,
-        "\nRegenerate: `cargo run --release --bin photon_diagnostics` ({:.0} s).",
-        started.elapsed().as_secs_f64()
-    );
-    std::fs::write(args.out.join("summary.md"), &md)?;
-    write_manifest(&args.out.join("manifest.json"), &args, started.elapsed().as_secs_f64())?;
+    let _ = writeln!(md, "\nRegenerate: `cargo run --release --bin photon_diagnostics` ({:.0} s).", run.seconds());
+    std::fs::write(run.path("summary.md"), &md)?;
+    run.write_manifest(&args)?;
     print!("{md}");
     Ok(())
 }

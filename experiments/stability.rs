@@ -11,12 +11,11 @@
 use clap::Parser;
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::stability::{run_all, Kind, Outcome, Settings, FD_TOL, FLOOR};
-use dualphoton::io::manifest::write_manifest;
+use dualphoton::experiment::{self, Run};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(Parser)]
 #[command(about = "Values, derivatives and energy on stiff and extreme scenes; invalid scenes are rejected")]
@@ -81,23 +80,21 @@ struct Manifest<'a> {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    dualphoton::error::exit_code(run(Args::parse()))
+    experiment::main(run)
 }
 
 fn run(args: Args) -> Result<()> {
     let settings = Settings::new(args.smoke, args.seed);
-    std::fs::create_dir_all(&args.out)?;
-    let started = Instant::now();
+    let run = Run::start(&args.out)?;
     let scratch = std::env::temp_dir().join(format!("dualphoton-stability-{}", std::process::id()));
     let rows = run_all(&settings, &scratch, &mut |r| eprintln!("{}", progress(r)));
-    let seconds = started.elapsed().as_secs_f64();
-    write_csv(&args.out.join("report.csv"), &rows)?;
-    plot(&args.out.join("fd_error.svg"), &rows)?;
-    std::fs::write(args.out.join("summary.md"), summary(&rows, &args, &settings, seconds))?;
+    let seconds = run.seconds();
+    write_csv(&run.path("report.csv"), &rows)?;
+    plot(&run.path("fd_error.svg"), &rows)?;
+    std::fs::write(run.path("summary.md"), summary(&rows, &args, &settings, seconds))?;
     let passed = rows.iter().filter(|r| r.passed).count();
     let manifest = Manifest { settings: &settings, smoke: args.smoke, cases: rows.len(), passed };
-    write_manifest(&args.out.join("manifest.json"), &manifest, seconds)?;
+    run.write_manifest_timed(&manifest, seconds)?;
     let failed: Vec<&str> = rows.iter().filter(|r| !r.passed).map(|r| r.case.as_str()).collect();
     eprintln!("{} cases, {} failed, {seconds:.1} s; report in {}", rows.len(), failed.len(), args.out.display());
     if !failed.is_empty() {

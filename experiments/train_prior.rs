@@ -14,7 +14,7 @@ use dualphoton::data::plume::variation::VALIDATION_SEEDS;
 use dualphoton::data::plume::{plume_with, Variation};
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::{block_means, pearson, rel_l1};
-use dualphoton::io::manifest::write_manifest;
+use dualphoton::experiment::{self, Run};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::train::{fit_latent, initial_state, load_checkpoint, targets, train, PriorSettings};
@@ -22,7 +22,6 @@ use dualphoton::prior::training_set::{cache_dir, training_set};
 use dualphoton::prior::Prior;
 use serde::Serialize;
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Parser, Serialize)]
 #[command(about = "Train the plume prior (a decoder over many simulated plumes) into models/plume64")]
@@ -90,8 +89,7 @@ struct ValidationRow {
 }
 
 fn main() -> std::process::ExitCode {
-    dualphoton::process::keep_freed_memory();
-    dualphoton::error::exit_code(run(Args::parse()))
+    experiment::main(run)
 }
 
 fn run(mut args: Args) -> Result<()> {
@@ -114,9 +112,9 @@ fn run(mut args: Args) -> Result<()> {
         ..PriorSettings::default()
     };
     dualphoton::prior::train::validate(&settings)?;
-    let started = Instant::now();
+    let run = Run::timer(&args.out);
     let plumes = targets(&settings, training_set(args.res, args.plumes, Some(&cache_dir(&args.cache, args.res)))?);
-    let data_s = started.elapsed().as_secs_f64();
+    let data_s = run.seconds();
     let name = args.out.file_name().map_or("prior".into(), |n| n.to_string_lossy().into_owned());
     let checkpoint = args.cache.join(format!("checkpoint_{name}"));
     let state = match load_checkpoint(&settings, &checkpoint)? {
@@ -206,7 +204,7 @@ fn run(mut args: Args) -> Result<()> {
         train_s,
         final_loss: state.rows.last().map_or(f64::NAN, |r| r.loss),
     };
-    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
+    run.write_manifest(&manifest)?;
     eprintln!("wrote {}", args.out.display());
     Ok(())
 }

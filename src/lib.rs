@@ -16,6 +16,7 @@ pub mod ad;
 pub mod data;
 pub mod error;
 pub mod eval;
+pub mod experiment;
 pub mod grad;
 pub mod image;
 pub mod io;

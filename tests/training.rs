@@ -61,7 +61,7 @@ fn experiment_table1_smoke_run_writes_everything() {
         assert!(table1.contains(label), "table1.svg lacks {label:?}");
     }
     let manifest: serde_json::Value = serde_json::from_str(&svg("manifest.json")).unwrap();
-    for key in ["seed", "estimator", "weight_mode", "target_photons", "hull_voxels", "git", "wall_s", "threads"] {
+    for key in ["seed", "estimator", "weight_mode", "target_photons", "hull_voxels", "revision", "wall_s", "threads"] {
         assert!(manifest.get(key).is_some(), "manifest lacks {key}");
     }
     let log = std::fs::read_to_string(dir.join("log.csv")).unwrap();

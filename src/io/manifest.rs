@@ -1,35 +1,69 @@
-//! Run manifests: what produced a result (settings, seed, git revision,
-//! wall time, peak memory), written beside it as JSON.
+//! Run manifests: what produced a result, written beside it as JSON: the
+//! run's settings plus its provenance (the revision the binary was built
+//! from, whether its tree was clean, the command as run, the UTC date, wall
+//! time, worker threads, the machine's speed), and the process's peak memory.
 
 use crate::error::{Error, Result};
-use serde_json::Value;
+use serde_json::{Map, Value};
 use std::path::Path;
+use std::time::{SystemTime, UNIX_EPOCH};
 
-/// The current git revision, with `-dirty` if tracked files outside
-/// `results/` have changes, or "unknown". Results are what a run writes
-/// (and rewrites as it goes), not the code that produced them, so they do
-/// not count.
-pub fn git_revision() -> String {
-    let run = |args: &[&str]| {
-        std::process::Command::new("git")
-            .args(args)
-            .output()
-            .ok()
-            .filter(|o| o.status.success())
-            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-    };
-    match run(&["rev-parse", "--short=12", "HEAD"]) {
-        Some(rev) => {
-            let dirty = run(&["status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results"])
-                .is_some_and(|s| !s.is_empty());
-            if dirty {
-                format!("{rev}-dirty")
-            } else {
-                rev
-            }
-        }
-        None => "unknown".into(),
+/// The git revision (12 hex digits) this binary was built from, embedded by
+/// `build.rs`; "unknown" where it was built without git.
+pub const REVISION: &str = env!("DUALPHOTON_REVISION");
+
+/// Whether the tracked files outside `results/` matched [`REVISION`] when
+/// this binary was built (see `build.rs` for when that is re-checked);
+/// `None` where unknown. Results are what runs write, not the code that
+/// produced them, so they do not count.
+pub fn tree_clean() -> Option<bool> {
+    match env!("DUALPHOTON_TREE_CLEAN") {
+        "true" => Some(true),
+        "false" => Some(false),
+        _ => None,
     }
+}
+
+/// The revision this binary was built from, with `-dirty` if its tree was
+/// not clean: one word for small caches' manifests (reference renders).
+pub fn git_revision() -> String {
+    match tree_clean() {
+        Some(false) => format!("{REVISION}-dirty"),
+        _ => REVISION.to_string(),
+    }
+}
+
+/// The command line as run: the program's file name and its arguments,
+/// each argument quoted if it holds a space or is empty.
+pub fn command_line() -> String {
+    let mut args = std::env::args_os().map(|a| a.to_string_lossy().into_owned());
+    let program = args.next().unwrap_or_default();
+    let name = Path::new(&program).file_name().map_or(program.clone(), |n| n.to_string_lossy().into_owned());
+    let quote = |a: String| if a.is_empty() || a.contains(char::is_whitespace) { format!("'{a}'") } else { a };
+    std::iter::once(name).chain(args.map(quote)).collect::<Vec<_>>().join(" ")
+}
+
+/// `t` as an ISO 8601 UTC date and time to the second
+/// (`2024-02-29T13:05:09Z`); times before 1970 read as 1970.
+pub fn utc_date(t: SystemTime) -> String {
+    let secs = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let (days, rem) = (secs / 86_400, secs % 86_400);
+    let (y, m, d) = civil_from_days(days);
+    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, rem / 60 % 60, rem % 60)
+}
+
+/// (year, month 1-12, day 1-31) of the day `days` after 1970-01-01 in the
+/// proleptic Gregorian calendar (H. Hinnant's `civil_from_days`, for days >= 0).
+fn civil_from_days(days: u64) -> (u64, u64, u64) {
+    let z = days + 719_468; // days since 0000-03-01
+    let era = z / 146_097;
+    let doe = z - era * 146_097; // day of the 400-year era, [0, 146096]
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365; // [0, 399]
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100); // day of the year from March 1st, [0, 365]
+    let mp = (5 * doy + 2) / 153; // month from March, [0, 11]
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    (yoe + era * 400 + u64::from(m <= 2), m, d)
 }
 
 /// Writes `value` as pretty JSON to `path`.
@@ -53,19 +87,53 @@ pub fn peak_memory_mib() -> f64 {
         .map_or(0.0, |kb| kb / 1024.0)
 }
 
+/// The provenance fields every manifest carries: `revision` (built from),
+/// `tree_clean` (null where unknown), `command` (as run), `date` (UTC, when
+/// the manifest is written: the run's end), `wall_s`, worker `threads`.
+pub fn provenance(wall_s: f64) -> Map<String, Value> {
+    let mut map = Map::new();
+    map.insert("revision".into(), REVISION.into());
+    map.insert("tree_clean".into(), tree_clean().into());
+    map.insert("command".into(), command_line().into());
+    map.insert("date".into(), utc_date(SystemTime::now()).into());
+    map.insert("wall_s".into(), wall_s.into());
+    map.insert("threads".into(), rayon::current_num_threads().into());
+    map
+}
+
 /// Writes a run's manifest: the fields of `settings` (any serde-serialisable
-/// settings struct, so no key is listed by hand) plus where the result came
-/// from: `git` revision, `wall_s` seconds, worker `threads` and the
-/// machine's `speed_probe` (timed now, after the run).
+/// settings struct, so no key is listed by hand), then the [`provenance`]
+/// fields and the machine's `speed_probe` (timed now, after the run, in
+/// about a second: it tells a slow machine from a slow revision).
 pub fn write_manifest<T: serde::Serialize>(path: &Path, settings: &T, wall_s: f64) -> Result<()> {
     let mut value = serde_json::to_value(settings).map_err(|e| Error(e.to_string()))?;
     let Value::Object(map) = &mut value else {
         return Err(Error::new("manifest: settings must serialise to a JSON object"));
     };
-    map.insert("git".into(), git_revision().into());
-    map.insert("wall_s".into(), wall_s.into());
-    map.insert("threads".into(), rayon::current_num_threads().into());
+    map.extend(provenance(wall_s));
     let probe = serde_json::to_value(super::speed_probe::speed_probe()).map_err(|e| Error(e.to_string()))?;
     map.insert("speed_probe".into(), probe);
     write_json(path, &value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    #[test]
+    fn dates_are_iso_8601_utc() {
+        let at = |s: u64| utc_date(UNIX_EPOCH + Duration::from_secs(s));
+        assert_eq!(at(0), "1970-01-01T00:00:00Z");
+        assert_eq!(at(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(at(1_709_164_800), "2024-02-29T00:00:00Z");
+        assert_eq!(at(1_764_120_000), "2025-11-26T01:20:00Z");
+        assert_eq!(at(4_102_444_799), "2099-12-31T23:59:59Z");
+    }
+
+    #[test]
+    fn the_revision_is_embedded() {
+        assert!(REVISION == "unknown" || (REVISION.len() >= 12 && REVISION.bytes().all(|b| b.is_ascii_hexdigit())));
+        assert!(git_revision().starts_with(REVISION));
+    }
 }
