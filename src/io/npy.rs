@@ -96,7 +96,7 @@ pub fn check_f32_range(data: &[f64]) -> std::result::Result<(), String> {
     match data.iter().position(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64)) {
         None => Ok(()),
         Some(n) => Err(format!(
-            "value {} at flat index {n} is not a finite float32 (|v| <= {:e}); NaN, infinities and larger \
+            "value {:e} at flat index {n} is not a finite float32 (|v| <= {:e}); NaN, infinities and larger \
              values are refused",
             data[n],
             f32::MAX

@@ -139,7 +139,7 @@ impl Prior {
             return Err(fail(
                 "weights.npy",
                 format!(
-                    "weight {n} is {:e}: weights must be within +-{MAX_WEIGHT:e} (a trained prior's stay below 2; \
+                    "weight {n} is {:.3e}: weights must be within +-{MAX_WEIGHT:e} (a trained prior's stay below 2; \
                      larger ones decode densities that overflow)",
                     weights.data[n]
                 ),
