@@ -44,7 +44,7 @@ pub fn validate(scene: &Scene) -> Result<()> {
         bail!("volume.sigma_t_scale: {} must be finite and >= 0", m.sigma_t_scale);
     }
     let depth = m.sigma_t_scale * d.max_value() * (d.hi - d.lo).norm();
-    if !(depth <= MAX_OPTICAL_DEPTH) {
+    if depth.is_nan() || depth > MAX_OPTICAL_DEPTH {
         bail!(
             "volume.sigma_t_scale: {} times the densest voxel ({}) across the box's diagonal is an optical depth of \
              {depth:e}, more than the {MAX_OPTICAL_DEPTH:e} the renderers accept (the path tracer's work grows with it)",
@@ -185,7 +185,7 @@ fn near_the_box(p: Vec3, density: &Grid<f64>, field: &str) -> Result<Vec3> {
     let most = MAX_DISTANCE_IN_DIAGONALS * diagonal;
     let centre = (density.hi + density.lo) * 0.5;
     let distance = (p - centre).norm();
-    if !(distance <= most) {
+    if distance.is_nan() || distance > most {
         bail!(
             "{field}: {:?} is {distance:e} from the volume's centre, more than {MAX_DISTANCE_IN_DIAGONALS:e} box \
              diagonals ({most:e})",
