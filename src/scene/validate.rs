@@ -165,11 +165,12 @@ fn check_memory(scene: &Scene) -> Result<()> {
     if bytes > MAX_RENDER_BYTES {
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
         bail!(
-            "cameras: {} cameras of {} pixels in all on a grid of {} voxels need about {:.1} GiB (images, one photon \
-             estimate per camera, light-depth grids), more than the {:.0} GiB a render may use: use fewer cameras, \
-             a coarser grid or fewer pixels",
+            "cameras: {} cameras of {} pixels in all and {} lights on a grid of {} voxels need about {:.1} GiB \
+             (images, one photon estimate per camera, one light-depth grid per light), more than the {:.0} GiB a \
+             render may use: use fewer cameras or lights, a coarser grid or fewer pixels",
             scene.cameras.len(),
             scene.cameras.iter().map(|c| c.pixels() as u64).sum::<u64>(),
+            scene.lights.len(),
             scene.density.data.len(),
             gib(bytes),
             gib(MAX_RENDER_BYTES)
