@@ -57,6 +57,11 @@ fn arrays_claiming_a_huge_shape_are_refused_before_allocating() {
     std::fs::write(&path, npy_header("(1024, 1024, 1024)", &vec![0; 4 << 20])).unwrap();
     let e = fails(npy::read(&path, "volume.density"), "volume.density");
     assert!(e.contains("huge.npy") && e.contains("more elements than"), "{e}");
+    // A shape that fits but does not match the file's size: refused from the header and the file's length.
+    let long = dir.join("long.npy");
+    std::fs::write(&long, npy_header("(4,)", &vec![0; 1 << 20])).unwrap();
+    let e = fails(npy::read(&long, "--images"), "--images");
+    assert!(e.contains("data is 1048576 bytes, shape [4] of <f8 needs 32"), "{e}");
     // The same inside a deflated .npz: the header is read first, nothing else decompressed.
     let npz = dir.join("huge.npz");
     let mut zip = zip::ZipWriter::new(std::fs::File::create(&npz).unwrap());

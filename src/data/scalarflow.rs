@@ -82,7 +82,8 @@ fn data_member(bytes: &[u8]) -> std::result::Result<Array, String> {
     let prefix = (12 + npy::MAX_HEADER) as u64;
     let cannot = |e: std::io::Error| format!("cannot decompress {name}: {e}");
     member.by_ref().take(prefix).read_to_end(&mut npy_bytes).map_err(cannot)?;
-    let (_, total) = npy::declared(&npy_bytes).map_err(|e| format!("{name}: {}", e.0))?;
+    let d = npy::declared(&npy_bytes).map_err(|e| format!("{name}: {}", e.0))?;
+    let total = d.header_end + d.data_bytes;
     let rest = (total as u64 + 1).saturating_sub(npy_bytes.len() as u64);
     member.take(rest).read_to_end(&mut npy_bytes).map_err(cannot)?;
     npy::parse(&npy_bytes).map_err(|e| format!("{name}: {}", e.0))

@@ -74,10 +74,27 @@ pub fn max_file_bytes() -> u64 {
 
 /// Reads a `.npy` file. `what` names the field the file belongs to: every
 /// error is `what: path: problem` (a long path shortened,
-/// [`crate::error::show`]).
+/// [`crate::error::show`]). The header is read first and its shape checked
+/// against [`MAX_ELEMENTS`] and against the file's size before the data is read.
 pub fn read(path: &Path, what: &str) -> Result<Array> {
+    use std::io::Read;
     let fail = |msg: String| Error(format!("{what}: {}: {msg}", crate::error::show(path)));
-    let bytes = read_bounded(path, max_file_bytes()).map_err(fail)?;
+    let (file, len) = open_regular(path, max_file_bytes()).map_err(fail)?;
+    let mut file = file.take(len + 1);
+    let mut bytes = Vec::new();
+    let cannot = |e: std::io::Error| fail(format!("cannot read: {e}"));
+    file.by_ref().take((12 + MAX_HEADER) as u64).read_to_end(&mut bytes).map_err(cannot)?;
+    // A header that does not parse is reported by `parse` below, with the whole file.
+    if let Ok(d) = declared(&bytes) {
+        if d.header_end as u64 + d.data_bytes as u64 != len {
+            let body = len.saturating_sub(d.header_end as u64);
+            return Err(fail(format!(
+                "data is {body} bytes, shape {:?} of {} needs {}",
+                d.shape, d.dtype, d.data_bytes
+            )));
+        }
+    }
+    file.read_to_end(&mut bytes).map_err(cannot)?;
     parse(&bytes).map_err(|e| fail(e.0))
 }
 
@@ -109,15 +126,8 @@ pub fn check_f32_range(data: &[f64]) -> std::result::Result<(), String> {
 /// longer than `most` is an error before (or instead of) reading it all.
 pub fn read_bounded(path: &Path, most: u64) -> std::result::Result<Vec<u8>, String> {
     use std::io::Read;
-    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
-    if !meta.is_file() {
-        return Err("not a regular file (a device, directory or pipe); give a file".into());
-    }
-    if meta.len() > most {
-        return Err(format!("{} bytes is more than the {most} this reader accepts", meta.len()));
-    }
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    let (file, len) = open_regular(path, most)?;
+    let mut bytes = Vec::with_capacity(len as usize);
     // The file may grow while read: never take more than `most` (+1 to notice).
     file.take(most + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
     if bytes.len() as u64 > most {
@@ -126,19 +136,45 @@ pub fn read_bounded(path: &Path, most: u64) -> std::result::Result<Vec<u8>, Stri
     Ok(bytes)
 }
 
-/// The shape a `.npy` header declares and the size in bytes of the whole
-/// file it describes, from the file's first bytes (the header is enough):
-/// lets a caller check a compressed member before decompressing it. A
-/// shape of more than [`MAX_ELEMENTS`] is an error.
-pub fn declared(bytes: &[u8]) -> Result<(Vec<usize>, usize)> {
+/// The regular file at `path`, opened, and its length, at most `most`.
+fn open_regular(path: &Path, most: u64) -> std::result::Result<(std::fs::File, u64), String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    if !meta.is_file() {
+        return Err("not a regular file (a device, directory or pipe); give a file".into());
+    }
+    if meta.len() > most {
+        return Err(format!("{} bytes is more than the {most} this reader accepts", meta.len()));
+    }
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    Ok((file, meta.len()))
+}
+
+/// What a `.npy` header declares ([`declared`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Declared {
+    /// Shape, outermost axis first.
+    pub shape: Vec<usize>,
+    /// The element type as written (`<f4`).
+    pub dtype: String,
+    /// Bytes before the data: magic, version, header length and header.
+    pub header_end: usize,
+    /// Bytes of data the shape and element type need.
+    pub data_bytes: usize,
+}
+
+/// What a `.npy` header declares, from the file's first bytes (the header
+/// is enough): lets a caller check a file's size, or a compressed member's,
+/// before reading or decompressing its data. A shape of more than
+/// [`MAX_ELEMENTS`] is an error.
+pub fn declared(bytes: &[u8]) -> Result<Declared> {
     let (header, body) = split(bytes)?;
     let header_end = bytes.len() - body.len();
     let value = |key: &str| header_value(header, key).ok_or_else(|| Error(format!("header has no '{key}'")));
     let dtype = value("descr")?.trim_matches(|c| c == '\'' || c == '"').to_string();
     let (element, _) = element_of(&dtype)?;
     let shape = parse_shape(value("shape")?)?;
-    let count = element_count(&shape)?;
-    Ok((shape, header_end + count * element.size()))
+    let data_bytes = element_count(&shape)? * element.size();
+    Ok(Declared { shape, dtype, header_end, data_bytes })
 }
 
 /// The number of elements of `shape`, at most [`MAX_ELEMENTS`].
