@@ -88,7 +88,7 @@ fn run(mut args: Args) -> Result<()> {
         let s = hull_stats(d, &mask);
         Row {
             iteration,
-            rel_l1_epsilon: rel_l1(d, truth, &mask),
+            rel_l1_epsilon: rel_l1(d, truth, &mask).expect("a plume is never all zero"),
             pearson_r: pearson(truth, d, &mask),
             mean: s.mean,
             max: s.max,

@@ -117,8 +117,9 @@ fn run_method(
     eprintln!();
     outputs.finish(&r, problem)?;
     let wall_s = t0.elapsed().as_secs_f64();
-    let d = density_metrics(&r.estimated, truth, &r.model.mask);
-    let held = rel_rmse(&r.final_images[n_train].data, &problem.held_out[0].data);
+    let d = density_metrics(&r.estimated, truth, &r.model.mask)?;
+    let held = rel_rmse(&r.final_images[n_train].data, &problem.held_out[0].data)
+        .expect("a plume and its images are never all zero");
     eprintln!("judging the fit: truth and estimate at {} photons, {} spp ...", fit_settings.photons, fit_settings.spp);
     let fit = fit_quality(problem.scene, &r.estimated, FitTarget::Truth(truth), n_train, fit_settings)?;
     Ok(MethodRun { is_prior: settings.prior.is_some(), r, d, held, fit, wall_s })

@@ -106,7 +106,8 @@ fn run(mut args: Args) -> Result<()> {
                 &pt.radiance,
                 Some(&pt.std_err),
                 ERROR_BLOCK,
-            ),
+            )
+            .expect("a plume's path-traced order is never all black"),
             path_tracer_noise: reference_noise(&pt.radiance, &pt.std_err, ERROR_BLOCK),
         });
     }

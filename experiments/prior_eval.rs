@@ -344,7 +344,10 @@ fn run(args: Args) -> Result<()> {
         };
         // Every row's measures: the density over the region, the held-out camera in the images.
         let measure = |density: &Grid<f64>, region: &[bool], images: &[Image]| {
-            (density_metrics(density, &truth, region), rel_rmse(&images[n_train].data, &held_out[0].data))
+            (
+                density_metrics(density, &truth, region).expect("a plume and its images are never all zero"),
+                rel_rmse(&images[n_train].data, &held_out[0].data).expect("a plume and its images are never all zero"),
+            )
         };
         let save = |method: &str, density: &Grid<f64>, row: &Row| -> Result<()> {
             let text = serde_json::to_string_pretty(row).map_err(|e| Error(e.to_string()))?;

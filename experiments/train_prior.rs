@@ -166,9 +166,9 @@ fn run(mut args: Args) -> Result<()> {
             sources: v.sources.len(),
             loss,
             pearson_r: pearson(&truth, &fit, &occupied),
-            rel_l1_epsilon: rel_l1(&fit, &truth, &occupied),
+            rel_l1_epsilon: rel_l1(&fit, &truth, &occupied).expect("a plume is never all zero"),
             block_pearson_r: pearson(&tb, &fb, &occ_b),
-            block_rel_l1_epsilon: rel_l1(&fb, &tb, &occ_b),
+            block_rel_l1_epsilon: rel_l1(&fb, &tb, &occ_b).expect("a plume is never all zero"),
         };
         eprintln!(
             "validation seed {seed}: loss {:.3}  r {:.3} (blocks {:.3})  eps {:.3} (blocks {:.3})",

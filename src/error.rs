@@ -33,6 +33,34 @@ impl From<std::io::Error> for Error {
     }
 }
 
+/// Characters kept at each end of a long path or value echoed in a message.
+pub const SHOWN_ENDS: usize = 60;
+
+/// `text` as it goes into a one-line message: as is up to `2 * SHOWN_ENDS`
+/// characters, else its first and last [`SHOWN_ENDS`] characters around an
+/// ellipsis (a 50 MB path is not echoed in full); line breaks become spaces.
+///
+/// ```
+/// use dualphoton::error::shorten;
+/// assert_eq!(shorten("a/b.npy"), "a/b.npy");
+/// let long = "x".repeat(1000);
+/// assert_eq!(shorten(&long).chars().count(), 2 * 60 + 3);
+/// ```
+pub fn shorten(text: &str) -> String {
+    let chars: Vec<char> = text.chars().map(|c| if c == '\n' || c == '\r' { ' ' } else { c }).collect();
+    if chars.len() <= 2 * SHOWN_ENDS {
+        return chars.into_iter().collect();
+    }
+    let head: String = chars[..SHOWN_ENDS].iter().collect();
+    let tail: String = chars[chars.len() - SHOWN_ENDS..].iter().collect();
+    format!("{head}...{tail}")
+}
+
+/// A path as it goes into a message: [`shorten`]ed.
+pub fn show(path: &std::path::Path) -> String {
+    shorten(&path.display().to_string())
+}
+
 /// Returns `Err` with the formatted message: `bail!("volume.g: {g} is not in (-1, 1)")`.
 #[macro_export]
 macro_rules! bail {

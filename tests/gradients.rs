@@ -4,7 +4,7 @@
 
 use dualphoton::ad::dual::with_tangents;
 use dualphoton::eval::scenes::{look_at_origin, two_light_blob};
-use dualphoton::grad::forward::{coordinate_gradient, directional, random_gradient, Directions};
+use dualphoton::grad::forward::{coordinate_gradient, directional, random_directions, random_gradient, Directions};
 use dualphoton::grad::loss::mse;
 use dualphoton::grad::reverse::{reverse_gradient, Subset};
 use dualphoton::image::Image;
@@ -134,12 +134,11 @@ fn forward_and_reverse_agree_on_every_voxel() {
 }
 
 #[test]
-fn subset_and_random_estimators_are_unbiased() {
+fn the_subset_estimator_is_unbiased() {
     let scene = scene(3);
     let targets = targets(&scene);
     let frozen = Frozen::new(&scene, None);
     let full = reverse_gradient(&frozen, &targets, Subset::full()).grad;
-    let params: Vec<usize> = (0..scene.density.len()).filter(|&v| full[v] != 0.0).collect();
     let seeds = 64;
     let check = |name: &str, estimates: Vec<Vec<f64>>| {
         // Compare along the full gradient and a fixed random direction: the mean of the projections within 3 SE.
@@ -159,10 +158,47 @@ fn subset_and_random_estimators_are_unbiased() {
         .map(|s| reverse_gradient(&frozen, &targets, Subset { pixels: Some(20), paths: Some(300), seed: s }).grad)
         .collect();
     check("rev-sub", rev_sub);
-    let fwd_rand: Vec<Vec<f64>> = (0..seeds)
-        .map(|s| random_gradient::<4>(&frozen, &params, &targets, Directions::Gaussian, &mut Rng::from_seed(s)))
-        .collect();
-    check("fwd-rand", fwd_rand);
+}
+
+/// `fwd-rand` is checked exactly, estimate by estimate: with its own K
+/// directions `u_k` (the same stream replayed) it must equal
+/// `(1/K) sum_k (u_k . g) u_k` for the exact gradient `g` (reverse mode),
+/// to rounding. Then statistically and sharply: along `g` its mean is
+/// `|g|^2` with a standard error of `|g|^2 sqrt(2 / (K seeds))` (9 % here),
+/// so a zero estimator (0) or a flipped sign (-1) is many errors away.
+#[test]
+fn fwd_rand_is_its_directions_projection_of_the_exact_gradient() {
+    let scene = scene(3);
+    let targets = targets(&scene);
+    let frozen = Frozen::new(&scene, None);
+    let full = reverse_gradient(&frozen, &targets, Subset::full()).grad;
+    let params: Vec<usize> = (0..scene.density.len()).filter(|&v| full[v] != 0.0).collect();
+    let g: Vec<f64> = params.iter().map(|&v| full[v]).collect();
+    let g2: f64 = g.iter().map(|x| x * x).sum();
+    const K: usize = 4;
+    let seeds = 64;
+    let mut along = vec![];
+    for s in 0..seeds {
+        let estimate = random_gradient::<K>(&frozen, &params, &targets, Directions::Gaussian, &mut Rng::from_seed(s));
+        let (dirs, factor) = random_directions::<K>(params.len(), Directions::Gaussian, &mut Rng::from_seed(s));
+        assert_eq!(factor, 1.0 / K as f64);
+        let proj: Vec<f64> = dirs.iter().map(|u| u.iter().zip(&g).map(|(a, b)| a * b).sum()).collect();
+        let want: Vec<f64> =
+            (0..params.len()).map(|i| factor * (0..K).map(|k| proj[k] * dirs[k][i]).sum::<f64>()).collect();
+        let size = want.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+        let worst = params.iter().zip(&want).fold(0.0f64, |m, (&v, w)| m.max((estimate[v] - w).abs()));
+        assert!(
+            size > 0.0 && worst <= 1e-9 * size,
+            "seed {s}: fwd-rand is off its projection by {worst:e} of {size:e}"
+        );
+        assert!((0..estimate.len()).all(|v| params.contains(&v) || estimate[v] == 0.0), "non-zero off the parameters");
+        along.push(estimate.iter().zip(&full).map(|(a, b)| a * b).sum::<f64>() / g2);
+    }
+    let n = along.len() as f64;
+    let mean = along.iter().sum::<f64>() / n;
+    let theory_se = (2.0 / (K as f64 * n)).sqrt();
+    eprintln!("fwd-rand along g: mean {mean:.3} of |g|^2 (1 expected, standard error {theory_se:.3})");
+    assert!((mean - 1.0).abs() <= 4.0 * theory_se, "fwd-rand along g: mean {mean} of |g|^2, expected 1");
 }
 
 #[test]

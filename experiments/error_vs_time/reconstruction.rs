@@ -78,9 +78,11 @@ pub fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut Strin
             );
         }
         let estimated = &result.estimated;
-        let eps = rel_l1(&estimated.data, &truth.data, &result.model.mask);
+        let eps = rel_l1(&estimated.data, &truth.data, &result.model.mask)
+            .expect("a plume and its images are never all zero");
         let r = pearson(&truth.data, &estimated.data, &result.model.mask);
-        let held = rel_rmse(&result.final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data);
+        let held = rel_rmse(&result.final_images[rig::HELD_OUT_CAMERA].data, &held_out[0].data)
+            .expect("a plume and its images are never all zero");
         let seconds = rows.last().map_or(0.0, |r| r.wall_s);
         let _ = writeln!(finals, "{},{trained},{refined},{seconds:.2},{eps:.6},{r:.6},{held:.6}", estimator.name());
         let _ = writeln!(

@@ -445,7 +445,7 @@ fn parse_voxels(text: &str, shape: [usize; 3]) -> Result<Vec<usize>> {
 
 /// A density grid from a `.npy` file, checked against the scene's grid shape.
 fn read_density(path: &Path, scene: &Scene, what: &str) -> Result<Grid<f64>> {
-    let a = npy::read(path, what)?;
+    let a = npy::read_f32_range(path, what)?;
     let shape = scene.density.shape;
     if a.shape != shape {
         return Err(Error(format!(
@@ -470,7 +470,7 @@ fn read_targets(dir: &Path, scene: &Scene) -> Result<Vec<Image>> {
         .enumerate()
         .map(|(c, cam)| {
             let path = dir.join(format!("cam{c}.npy"));
-            let a = npy::read(&path, "--target")?;
+            let a = npy::read_f32_range(&path, "--target")?;
             if a.shape != [cam.height, cam.width] {
                 return Err(Error(format!(
                     "--target: {} has shape {:?}, camera {c} needs ({}, {})",

@@ -41,11 +41,18 @@ use std::path::Path;
 /// # Ok::<(), dualphoton::Error>(())
 /// ```
 pub fn load_scalarflow(path: &Path, res: usize) -> Result<Grid<f64>> {
-    let fail = |msg: String| Error(format!("ScalarFlow frame {}: {msg}", path.display()));
+    let fail = |msg: String| Error(format!("ScalarFlow frame {}: {msg}", crate::error::show(path)));
     if res == 0 {
         return Err(fail("resolution 0 (need at least 1 voxel per axis)".into()));
     }
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    if res.checked_pow(3).is_none_or(|n| n > npy::MAX_ELEMENTS) {
+        return Err(fail(format!(
+            "resolution {res}: a {res}^3 grid is more than the {} voxels allowed",
+            npy::MAX_ELEMENTS
+        )));
+    }
+    // A compressed archive is smaller than what it holds: no valid one is larger.
+    let bytes = npy::read_bounded(path, npy::max_file_bytes()).map_err(fail)?;
     let frame = data_member(&bytes).and_then(frame_grid).map_err(fail)?;
     let mut grid = resample(&frame, res);
     let max = grid.max_value();
@@ -68,8 +75,17 @@ fn data_member(bytes: &[u8]) -> std::result::Result<Array, String> {
         return Err(format!("no array 'data' in the archive (members: {})", names.join(", ")));
     };
     let mut member = zip.by_name(name).map_err(|e| format!("cannot open {name}: {e}"))?;
-    let mut npy_bytes = Vec::with_capacity(member.size().min(1 << 30) as usize);
-    member.read_to_end(&mut npy_bytes).map_err(|e| format!("cannot decompress {name}: {e}"))?;
+    // Decompress the header alone first: a 4 MB archive may claim a 1024^3
+    // array (8 GB). Its declared size is checked against MAX_ELEMENTS before
+    // the rest is decompressed, and no more than that size is ever taken.
+    let mut npy_bytes = Vec::new();
+    let prefix = (12 + npy::MAX_HEADER) as u64;
+    let cannot = |e: std::io::Error| format!("cannot decompress {name}: {e}");
+    member.by_ref().take(prefix).read_to_end(&mut npy_bytes).map_err(cannot)?;
+    let d = npy::declared(&npy_bytes).map_err(|e| format!("{name}: {}", e.0))?;
+    let total = d.header_end + d.data_bytes;
+    let rest = (total as u64 + 1).saturating_sub(npy_bytes.len() as u64);
+    member.take(rest).read_to_end(&mut npy_bytes).map_err(cannot)?;
     npy::parse(&npy_bytes).map_err(|e| format!("{name}: {}", e.0))
 }
 

@@ -5,6 +5,7 @@
 //! resolves it).
 
 use super::metrics::{block_mask, block_means, pearson, rel_l1};
+use crate::error::{Error, Result};
 use crate::volume::Grid;
 use serde::Serialize;
 
@@ -43,8 +44,10 @@ pub struct DensityMetrics {
 }
 
 /// Measures `estimate` against `truth` (both cubic grids of one shape)
-/// over the hull `mask`.
-pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -> DensityMetrics {
+/// over the hull `mask`. A truth that is zero over the hull is an error:
+/// relative errors against it are undefined.
+pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -> Result<DensityMetrics> {
+    let undefined = || Error::new("truth: zero over every hull voxel: relative density errors are undefined");
     let res = truth.shape[0];
     let (e, t) = (&estimate.data, &truth.data);
     let in_hull = |d: &[f64]| d.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| *v).collect::<Vec<f64>>();
@@ -55,12 +58,12 @@ pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -
     let (eb, tb, mb) = (block_means(e, res), block_means(t, res), block_mask(mask, res));
     let in_blocks = |d: &[f64]| d.iter().zip(&mb).filter(|(_, &m)| m).map(|(v, _)| *v).collect::<Vec<f64>>();
     let blurred = crate::volume::blur::gaussian_blur(truth, 1.0);
-    DensityMetrics {
+    Ok(DensityMetrics {
         hull_voxels: eh.len(),
         pearson_r: pearson(t, e, mask),
-        rel_l1_epsilon: rel_l1(e, t, mask),
+        rel_l1_epsilon: rel_l1(e, t, mask).ok_or_else(undefined)?,
         block_pearson_r: pearson(&tb, &eb, &mb),
-        block_rel_l1_epsilon: rel_l1(&eb, &tb, &mb),
+        block_rel_l1_epsilon: rel_l1(&eb, &tb, &mb).ok_or_else(undefined)?,
         mass_error: rel(sum(&eh), sum(&th)),
         max_error: rel(max(&eh), max(&th)),
         block_max_error: rel(max(&in_blocks(&eb)), max(&in_blocks(&tb))),
@@ -68,7 +71,7 @@ pub fn density_metrics(estimate: &Grid<f64>, truth: &Grid<f64>, mask: &[bool]) -
         blurred_truth_max: max(&in_hull(&blurred.data)),
         empty_truth_mass: share_where(&th, &eh),
         haze_mass: share_where(&eh, &th),
-    }
+    })
 }
 
 /// The fraction of `of`'s sum held where `zero` is exactly 0 (0 if `of` sums to 0).
@@ -91,24 +94,24 @@ mod tests {
     fn the_truth_scores_perfectly_and_a_scaled_estimate_only_in_scale() {
         let t = blob(16);
         let mask = vec![true; t.len()];
-        let m = density_metrics(&t, &t, &mask);
+        let m = density_metrics(&t, &t, &mask).unwrap();
         assert!((m.pearson_r - 1.0).abs() < 1e-12 && m.rel_l1_epsilon == 0.0 && m.mass_error == 0.0);
         assert!((m.block_pearson_r - 1.0).abs() < 1e-12 && m.block_max_error == 0.0);
         assert!(m.blur_ceiling_r > 0.9 && m.blur_ceiling_r < 1.0, "{m:?}");
         assert_eq!(m.empty_truth_mass, 0.0);
         let mut e = t.clone();
         e.data.iter_mut().for_each(|v| *v *= 1.1);
-        let m = density_metrics(&e, &t, &mask);
+        let m = density_metrics(&e, &t, &mask).unwrap();
         assert!((m.pearson_r - 1.0).abs() < 1e-12 && (m.mass_error - 0.1).abs() < 1e-12);
         assert!((m.max_error - 0.1).abs() < 1e-12 && (m.block_rel_l1_epsilon - 0.1).abs() < 1e-12);
         // An estimate empty in half the voxels misses the truth's mass there.
         let mut e = t.clone();
         e.data.iter_mut().step_by(2).for_each(|v| *v = 0.0);
         let missing: f64 = t.data.iter().step_by(2).sum::<f64>() / t.data.iter().sum::<f64>();
-        assert!((density_metrics(&e, &t, &mask).empty_truth_mass - missing).abs() < 1e-12);
-        assert_eq!(density_metrics(&e, &t, &mask).haze_mass, 0.0);
+        assert!((density_metrics(&e, &t, &mask).unwrap().empty_truth_mass - missing).abs() < 1e-12);
+        assert_eq!(density_metrics(&e, &t, &mask).unwrap().haze_mass, 0.0);
         // And the other way round: a haze where the truth is empty.
-        let m = density_metrics(&t, &e, &mask);
+        let m = density_metrics(&t, &e, &mask).unwrap();
         assert!((m.haze_mass - missing).abs() < 1e-12 && m.empty_truth_mass == 0.0, "{m:?}");
     }
 }

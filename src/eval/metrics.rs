@@ -26,13 +26,15 @@ fn block_sums(ours: &[Image], reference: &[Image], std_err: Option<&[Image]>, b:
 /// `sqrt(mean((ours_b - ref_b)^2) - mean(var_b)) / sqrt(mean(ref_b^2))` over
 /// `b x b` block means of all cameras, where `var_b` is the reference's
 /// noise variance of each block mean (from its standard-error images; none
-/// subtracted if `std_err` is `None`). 0 if the difference is below the noise.
-pub fn block_rel_rmse(ours: &[Image], reference: &[Image], std_err: Option<&[Image]>, b: usize) -> f64 {
+/// subtracted if `std_err` is `None`). 0 if the difference is below the
+/// noise; `None` against an all-black reference (a relative error is
+/// undefined there, and writers leave its cell empty).
+pub fn block_rel_rmse(ours: &[Image], reference: &[Image], std_err: Option<&[Image]>, b: usize) -> Option<f64> {
     let (diff2, noise, ref2, n) = block_sums(ours, reference, std_err, b);
     if ref2 == 0.0 || n == 0 {
-        return if diff2 == 0.0 { 0.0 } else { f64::INFINITY };
+        return None;
     }
-    ((diff2 - noise).max(0.0) / n as f64).sqrt() / (ref2 / n as f64).sqrt()
+    Some(((diff2 - noise).max(0.0) / n as f64).sqrt() / (ref2 / n as f64).sqrt())
 }
 
 /// The reference's own noise on the same scale: `sqrt(mean(var_b)) / sqrt(mean(ref_b^2))`.
@@ -55,19 +57,23 @@ pub fn rel_mean_diff(ours: &[Image], reference: &[Image]) -> f64 {
     }
 }
 
-/// Relative RMSE of `ours` against `reference`.
-pub fn rel_rmse(ours: &[f64], reference: &[f64]) -> f64 {
+/// Relative RMSE of `ours` against `reference`; `None` when the reference
+/// is all zero (the relative error is undefined there).
+///
+/// ```
+/// use dualphoton::eval::metrics::rel_rmse;
+/// assert_eq!(rel_rmse(&[2.0, 0.0], &[1.0, 0.0]), Some(1.0));
+/// assert_eq!(rel_rmse(&[2.0], &[0.0]), None);
+/// ```
+pub fn rel_rmse(ours: &[f64], reference: &[f64]) -> Option<f64> {
     let num: f64 = ours.iter().zip(reference).map(|(a, b)| (a - b).powi(2)).sum();
     let den: f64 = reference.iter().map(|b| b * b).sum();
-    if den == 0.0 {
-        0.0
-    } else {
-        (num / den).sqrt()
-    }
+    (den > 0.0).then(|| (num / den).sqrt())
 }
 
-/// Relative L1 error `|a - b|_1 / |b|_1` over the masked voxels.
-pub fn rel_l1(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
+/// Relative L1 error `|a - b|_1 / |b|_1` over the masked voxels; `None`
+/// when `b` is zero over them (the relative error is undefined there).
+pub fn rel_l1(a: &[f64], b: &[f64], mask: &[bool]) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
     for i in 0..a.len() {
         if mask[i] {
@@ -75,11 +81,7 @@ pub fn rel_l1(a: &[f64], b: &[f64], mask: &[bool]) -> f64 {
             den += b[i].abs();
         }
     }
-    if den == 0.0 {
-        0.0
-    } else {
-        num / den
-    }
+    (den > 0.0).then(|| num / den)
 }
 
 /// Density statistics over the hull voxels.

@@ -32,9 +32,12 @@ pub fn median_of(times: &[Timings], stage: fn(&Timings) -> f64) -> f64 {
     median(&times.iter().map(stage).collect::<Vec<_>>())
 }
 
-/// The block relative RMSE of `images` against `reference`, its noise removed.
+/// The block relative RMSE of `images` against `reference`, its noise
+/// removed. The benchmarks' references are path-traced plumes, never all
+/// black; one that is would be a bug in the benchmark's scene.
 pub fn error(images: &[crate::image::Image], reference: &Reference) -> f64 {
     block_rel_rmse(images, &reference.radiance, Some(&reference.std_err), ERROR_BLOCK)
+        .expect("a benchmark's reference image is all black")
 }
 
 /// One photon-mapping configuration of a sweep.

@@ -8,16 +8,22 @@
 //! writes for a transposed array), the latter rearranged into C order on
 //! load. A header whose shape does not match the data that follows, or
 //! asks for more than [`MAX_ELEMENTS`], is an error before anything is
-//! allocated for it. Write: version 1.0, little-endian, C order.
+//! allocated for it; a path that is not a regular file (`/dev/zero`, a
+//! directory, a pipe) is an error before anything is read, and no read
+//! takes more bytes than the largest valid file ([`max_file_bytes`]).
+//! Write: version 1.0, little-endian, C order.
 
 use crate::bail;
 use crate::error::{Error, Result};
 use std::path::Path;
 
-/// Most elements an array read may have: 2^31, 16 GiB once widened to `f64`.
-pub const MAX_ELEMENTS: usize = 1 << 31;
+/// Most elements an array read may have: 2^28 (a 645^3 grid; 2 GiB once
+/// widened to `f64`). The project's grids are at most 128^3 (2^21) and its
+/// largest array, a prior's weights, under 2^20; a header asking for more
+/// (a 4 MB compressed file claiming 1024^3) is refused before any allocation.
+pub const MAX_ELEMENTS: usize = 1 << 28;
 /// Longest header read (numpy's own loader refuses headers over 10 000 bytes by default).
-const MAX_HEADER: usize = 1 << 20;
+pub const MAX_HEADER: usize = 1 << 20;
 
 /// The element types read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,18 +66,124 @@ pub struct Array {
     pub element: Element,
 }
 
+/// The largest a valid `.npy` file can be: its prefix, the longest header
+/// read and [`MAX_ELEMENTS`] 8-byte elements.
+pub fn max_file_bytes() -> u64 {
+    12 + MAX_HEADER as u64 + 8 * MAX_ELEMENTS as u64
+}
+
 /// Reads a `.npy` file. `what` names the field the file belongs to: every
-/// error is `what: path: problem`.
+/// error is `what: path: problem` (a long path shortened,
+/// [`crate::error::show`]). The header is read first and its shape checked
+/// against [`MAX_ELEMENTS`] and against the file's size before the data is read.
 pub fn read(path: &Path, what: &str) -> Result<Array> {
-    let fail = |msg: String| Error(format!("{what}: {}: {msg}", path.display()));
-    let len = std::fs::metadata(path).map_err(|e| fail(format!("cannot read: {e}")))?.len();
-    // No valid file is larger: check before reading it all into memory.
-    let most = 12 + MAX_HEADER as u64 + 8 * MAX_ELEMENTS as u64;
-    if len > most {
-        return Err(fail(format!("{len} bytes is more than a .npy of at most {MAX_ELEMENTS} elements can be")));
+    use std::io::Read;
+    let fail = |msg: String| Error(format!("{what}: {}: {msg}", crate::error::show(path)));
+    let (file, len) = open_regular(path, max_file_bytes()).map_err(fail)?;
+    let mut file = file.take(len + 1);
+    let mut bytes = Vec::new();
+    let cannot = |e: std::io::Error| fail(format!("cannot read: {e}"));
+    file.by_ref().take((12 + MAX_HEADER) as u64).read_to_end(&mut bytes).map_err(cannot)?;
+    // A header that does not parse is reported by `parse` below, with the whole file.
+    if let Ok(d) = declared(&bytes) {
+        if d.header_end as u64 + d.data_bytes as u64 != len {
+            let body = len.saturating_sub(d.header_end as u64);
+            return Err(fail(format!(
+                "data is {body} bytes, shape {:?} of {} needs {}",
+                d.shape, d.dtype, d.data_bytes
+            )));
+        }
     }
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    file.read_to_end(&mut bytes).map_err(cannot)?;
     parse(&bytes).map_err(|e| fail(e.0))
+}
+
+/// [`read`], then a check that every value is finite and fits in float32
+/// (`|v| <= f32::MAX`): for data that is used or written as float32
+/// (densities, images), where a float64 1e300 would become an infinity.
+pub fn read_f32_range(path: &Path, what: &str) -> Result<Array> {
+    let array = read(path, what)?;
+    check_f32_range(&array.data).map_err(|msg| Error(format!("{what}: {}: {msg}", crate::error::show(path))))?;
+    Ok(array)
+}
+
+/// `Err` naming the first value that is NaN, infinite or beyond the float32
+/// range, with its flat index.
+pub fn check_f32_range(data: &[f64]) -> std::result::Result<(), String> {
+    match data.iter().position(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64)) {
+        None => Ok(()),
+        Some(n) => Err(format!(
+            "value {:e} at flat index {n} is not a finite float32 (|v| <= {:e}); NaN, infinities and larger \
+             values are refused",
+            data[n],
+            f32::MAX
+        )),
+    }
+}
+
+/// The bytes of the regular file at `path`, at most `most` of them: a path
+/// that is not a regular file (`/dev/zero`, a directory, a FIFO) or a file
+/// longer than `most` is an error before (or instead of) reading it all.
+pub fn read_bounded(path: &Path, most: u64) -> std::result::Result<Vec<u8>, String> {
+    use std::io::Read;
+    let (file, len) = open_regular(path, most)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    // The file may grow while read: never take more than `most` (+1 to notice).
+    file.take(most + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > most {
+        return Err(format!("more than the {most} bytes this reader accepts"));
+    }
+    Ok(bytes)
+}
+
+/// The regular file at `path`, opened, and its length, at most `most`.
+fn open_regular(path: &Path, most: u64) -> std::result::Result<(std::fs::File, u64), String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    if !meta.is_file() {
+        return Err("not a regular file (a device, directory or pipe); give a file".into());
+    }
+    if meta.len() > most {
+        return Err(format!("{} bytes is more than the {most} this reader accepts", meta.len()));
+    }
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    Ok((file, meta.len()))
+}
+
+/// What a `.npy` header declares ([`declared`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Declared {
+    /// Shape, outermost axis first.
+    pub shape: Vec<usize>,
+    /// The element type as written (`<f4`).
+    pub dtype: String,
+    /// Bytes before the data: magic, version, header length and header.
+    pub header_end: usize,
+    /// Bytes of data the shape and element type need.
+    pub data_bytes: usize,
+}
+
+/// What a `.npy` header declares, from the file's first bytes (the header
+/// is enough): lets a caller check a file's size, or a compressed member's,
+/// before reading or decompressing its data. A shape of more than
+/// [`MAX_ELEMENTS`] is an error.
+pub fn declared(bytes: &[u8]) -> Result<Declared> {
+    let (header, body) = split(bytes)?;
+    let header_end = bytes.len() - body.len();
+    let value = |key: &str| header_value(header, key).ok_or_else(|| Error(format!("header has no '{key}'")));
+    let dtype = value("descr")?.trim_matches(|c| c == '\'' || c == '"').to_string();
+    let (element, _) = element_of(&dtype)?;
+    let shape = parse_shape(value("shape")?)?;
+    let data_bytes = element_count(&shape)? * element.size();
+    Ok(Declared { shape, dtype, header_end, data_bytes })
+}
+
+/// The number of elements of `shape`, at most [`MAX_ELEMENTS`].
+fn element_count(shape: &[usize]) -> Result<usize> {
+    shape
+        .iter()
+        .try_fold(1usize, |n, &axis| n.checked_mul(axis))
+        .filter(|&n| n <= MAX_ELEMENTS)
+        .ok_or_else(|| Error(format!("shape {shape:?} has more elements than the {MAX_ELEMENTS} this reader accepts")))
 }
 
 /// Parses the bytes of a `.npy` file.
@@ -86,10 +198,7 @@ pub fn parse(bytes: &[u8]) -> Result<Array> {
         other => bail!("header's 'fortran_order' is {other}, not True or False"),
     };
     let shape = parse_shape(value("shape")?)?;
-    let count =
-        shape.iter().try_fold(1usize, |n, &axis| n.checked_mul(axis)).filter(|&n| n <= MAX_ELEMENTS).ok_or_else(
-            || Error(format!("shape {shape:?} has more elements than the {MAX_ELEMENTS} this reader accepts")),
-        )?;
+    let count = element_count(&shape)?;
     let need = count * element.size();
     if body.len() != need {
         bail!("data is {} bytes, shape {shape:?} of {dtype} needs {need}", body.len());

@@ -89,12 +89,19 @@ pub fn decoder(res: usize) -> Result<Decoder> {
     Ok(Decoder::new(LATENT, res, &channels)?.with_out_scale(OUT_SCALE))
 }
 
+/// Largest magnitude of a prior's (whitened) weight accepted on load. The
+/// shipped priors' weights stay below 2; four layers of weights of 1e30
+/// decode infinite densities, and 1e3 leaves room for any trained prior.
+pub const MAX_WEIGHT: f64 = 1e3;
+
 impl Prior {
     /// Loads the prior in `dir`. Every error is one line naming the file and the problem.
     pub fn load(dir: &Path) -> Result<Prior> {
-        let fail = |what: &str, msg: String| Error(format!("prior {}: {what}: {msg}", dir.display()));
+        let shown = crate::error::show(dir);
+        let fail = |what: &str, msg: String| Error(format!("prior {shown}: {what}: {msg}"));
         let json = dir.join("prior.json");
-        let text = std::fs::read_to_string(&json).map_err(|e| fail("prior.json", format!("cannot read: {e}")))?;
+        let bytes = npy::read_bounded(&json, 1 << 20).map_err(|e| fail("prior.json", e))?;
+        let text = String::from_utf8(bytes).map_err(|_| fail("prior.json", "not UTF-8 text".into()))?;
         let file: PriorFile =
             serde_json::from_str(&text).map_err(|e| fail("prior.json", format!("not a prior description: {e}")))?;
         if file.format != FORMAT {
@@ -114,7 +121,7 @@ impl Prior {
         let decoder = Decoder::new(file.latent, file.res, &file.channels)
             .map_err(|e| fail("prior.json", e.0))?
             .with_out_scale(file.out_scale);
-        let weights = npy::read(&dir.join("weights.npy"), &format!("prior {}", dir.display()))?;
+        let weights = npy::read(&dir.join("weights.npy"), &format!("prior {shown}"))?;
         if weights.data.len() != decoder.param_count() {
             return Err(fail(
                 "weights.npy",
@@ -127,6 +134,16 @@ impl Prior {
         }
         if weights.data.iter().any(|v| !v.is_finite()) {
             return Err(fail("weights.npy", "holds a NaN or an infinity".into()));
+        }
+        if let Some(n) = weights.data.iter().position(|v| v.abs() > MAX_WEIGHT) {
+            return Err(fail(
+                "weights.npy",
+                format!(
+                    "weight {n} is {:.3e}: weights must be within +-{MAX_WEIGHT:e} (a trained prior's stay below 2; \
+                     larger ones decode densities that overflow)",
+                    weights.data[n]
+                ),
+            ));
         }
         Ok(Prior { decoder, w: weights.data, dir: dir.to_path_buf() })
     }

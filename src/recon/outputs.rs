@@ -49,12 +49,22 @@ impl From<&LogRow> for CsvRow {
             iteration: r.iteration,
             train_loss: format!("{:.9e}", r.train_loss),
             held_out_loss: format!("{:.9e}", r.held_out_loss),
-            held_out_rel_rmse: format!("{:.6}", r.held_out_rel_rmse),
-            density_rel_l1: format!("{:.6}", r.density_rel_l1),
+            // Undefined (no truth, or an all-black held-out image): an empty cell, never NaN.
+            held_out_rel_rmse: finite_or_empty(r.held_out_rel_rmse),
+            density_rel_l1: finite_or_empty(r.density_rel_l1),
             mean_density: format!("{:.6e}", r.mean_density),
             max_density: format!("{:.6e}", r.max_density),
             wall_s: format!("{:.3}", r.wall_s),
         }
+    }
+}
+
+/// `v` as `{:.6}`, or an empty cell if it is NaN or infinite (undefined).
+fn finite_or_empty(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.6}")
+    } else {
+        String::new()
     }
 }
 
@@ -161,6 +171,6 @@ mod tests {
         let text = String::from_utf8(w.into_inner().unwrap()).unwrap();
         let mut lines = text.lines();
         assert_eq!(lines.next().unwrap(), LOG_COLUMNS.join(","));
-        assert_eq!(lines.next().unwrap(), "3,6.061075681e-4,0.000000000e0,0.853391,NaN,4.741452e-3,1.000000e0,0.007");
+        assert_eq!(lines.next().unwrap(), "3,6.061075681e-4,0.000000000e0,0.853391,,4.741452e-3,1.000000e0,0.007");
     }
 }

@@ -235,7 +235,7 @@ pub(super) fn log_row(
     } else {
         let ours: Vec<f64> = images[n..].iter().flatten().copied().collect();
         let theirs: Vec<f64> = level.held_out.iter().flat_map(|i| i.data.iter().copied()).collect();
-        (mse(&images[n..], &level.held_out), rel_rmse(&ours, &theirs))
+        (mse(&images[n..], &level.held_out), rel_rmse(&ours, &theirs).unwrap_or(f64::NAN))
     };
     let d = &decoded.data;
     let hull: Vec<f64> = d.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| *v).collect();
@@ -244,7 +244,7 @@ pub(super) fn log_row(
         train_loss,
         held_out_loss,
         held_out_rel_rmse,
-        density_rel_l1: problem.truth.map_or(f64::NAN, |t| rel_l1(d, &t.data, mask)),
+        density_rel_l1: problem.truth.and_then(|t| rel_l1(d, &t.data, mask)).unwrap_or(f64::NAN),
         mean_density: hull.iter().sum::<f64>() / hull.len().max(1) as f64,
         max_density: hull.iter().fold(0.0, |a: f64, &b| a.max(b)),
         wall_s,

@@ -160,24 +160,25 @@ fn parse_json(text: &str) -> std::result::Result<Value, serde_json::Error> {
     serde_json::from_str(text).or_else(|e| nan_as_null(text).and_then(|t| serde_json::from_str(&t).ok()).ok_or(e))
 }
 
+/// Largest scene file read: 64 MiB (a scene of 10,000 cameras is about 2 MB).
+pub const MAX_SCENE_BYTES: u64 = 64 << 20;
+
 /// Reads, validates and loads a scene file and its density.
 pub fn load(path: &Path) -> Result<Scene> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| Error(format!("scene: cannot read {}: {e}", path.display())))?;
-    let root = parse_json(&text).map_err(|e| Error(format!("scene {}: not valid JSON: {e}", path.display())))?;
+    let shown = crate::error::show(path);
+    let bytes = npy::read_bounded(path, MAX_SCENE_BYTES).map_err(|e| Error(format!("scene {shown}: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|_| Error(format!("scene {shown}: not UTF-8 text")))?;
+    let root = parse_json(&text).map_err(|e| Error(format!("scene {shown}: not valid JSON: {e}")))?;
     let file = scene_file(&root)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let density_path = dir.join(&file.volume.density);
-    let array = npy::read(&density_path, "volume.density")?;
+    let array = npy::read_f32_range(&density_path, "volume.density")?;
+    let shown = crate::error::show(&density_path);
     if !array.element.is_float() {
-        bail!("volume.density: {} has dtype {}, need float32 or float64", density_path.display(), array.dtype);
+        bail!("volume.density: {shown} has dtype {}, need float32 or float64", array.dtype);
     }
     if array.shape.len() != 3 || array.shape.contains(&0) {
-        bail!(
-            "volume.density: {} has shape {:?}, need (Z, Y, X) with every axis > 0",
-            density_path.display(),
-            array.shape
-        );
+        bail!("volume.density: {shown} has shape {:?}, need (Z, Y, X) with every axis > 0", array.shape);
     }
     let shape = [array.shape[0], array.shape[1], array.shape[2]];
     let lo = finite3(file.volume.bbox_min, "volume.bbox_min")?;

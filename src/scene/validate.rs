@@ -43,6 +43,15 @@ pub fn validate(scene: &Scene) -> Result<()> {
     if !(m.sigma_t_scale.is_finite() && m.sigma_t_scale >= 0.0) {
         bail!("volume.sigma_t_scale: {} must be finite and >= 0", m.sigma_t_scale);
     }
+    let depth = m.sigma_t_scale * d.max_value() * (d.hi - d.lo).norm();
+    if depth.is_nan() || depth > MAX_OPTICAL_DEPTH {
+        bail!(
+            "volume.sigma_t_scale: {} times the densest voxel ({}) across the box's diagonal is an optical depth of \
+             {depth:e}, more than the {MAX_OPTICAL_DEPTH:e} the renderers accept (the path tracer's work grows with it)",
+            m.sigma_t_scale,
+            d.max_value()
+        );
+    }
     if !(0.0..=1.0).contains(&m.albedo) {
         bail!("volume.albedo: {} must be in [0, 1]", m.albedo);
     }
@@ -53,9 +62,13 @@ pub fn validate(scene: &Scene) -> Result<()> {
         bail!("volume.max_order: {} must be in 1..=64", m.max_order);
     }
     for (n, l) in scene.lights.iter().enumerate() {
-        finite3(l.position.into(), &format!("lights[{n}].position"))?;
-        if !(l.intensity.is_finite() && l.intensity >= 0.0) {
-            bail!("lights[{n}].intensity: {} must be finite and >= 0", l.intensity);
+        near_the_box(
+            finite3(l.position.into(), &format!("lights[{n}].position"))?,
+            d,
+            &format!("lights[{n}].position"),
+        )?;
+        if !(l.intensity.is_finite() && (0.0..=MAX_INTENSITY).contains(&l.intensity)) {
+            bail!("lights[{n}].intensity: {} must be in [0, {MAX_INTENSITY:e}]", l.intensity);
         }
     }
     if scene.cameras.is_empty() {
@@ -71,26 +84,116 @@ pub fn validate(scene: &Scene) -> Result<()> {
             bail!("render.kernel_radius: {k} must be finite and > 0");
         }
     }
-    if let Some(s) = r.step {
-        if !(s.is_finite() && s > 0.0) {
-            bail!("render.step: {s} must be finite and > 0");
-        }
-    }
-    if let Some(s) = r.photon_step {
-        if !(s.is_finite() && s > 0.0) {
-            bail!("render.photon_step: {s} must be finite and > 0");
+    let finest = d.voxel_size().min() / MAX_STEPS_PER_VOXEL;
+    for (s, field) in [(r.step, "render.step"), (r.photon_step, "render.photon_step")] {
+        if let Some(s) = s {
+            if !(s.is_finite() && s >= finest) {
+                bail!(
+                    "{field}: {s} must be finite and at least the smallest voxel size / {MAX_STEPS_PER_VOXEL} = \
+                     {finest:e} (smaller steps add work, not accuracy)"
+                );
+            }
         }
     }
     if r.shadow_cell == Some(0) {
         bail!("render.shadow_cell: must be at least 1 (voxels per light-depth node)");
     }
-    if r.spp == 0 {
-        bail!("render.spp: must be at least 1");
+    if !(1..=MAX_SPP).contains(&r.spp) {
+        bail!("render.spp: {} must be in 1..={MAX_SPP}", r.spp);
     }
-    if r.path_spp == 0 {
-        bail!("render.path_spp: must be at least 1");
+    if !(2..=MAX_SPP).contains(&r.path_spp) {
+        bail!(
+            "render.path_spp: {} must be in 2..={MAX_SPP} (the standard-error images need at least 2 samples)",
+            r.path_spp
+        );
+    }
+    check_memory(scene)
+}
+
+/// Largest optical depth a scene may have: `sigma_t_scale` times the
+/// densest voxel times the box's diagonal. The path tracer's free flights
+/// and shadow rays take work in proportion to the optical depth they
+/// cross, so a scene of optical depth 1e9 would stall it; 1e6 is a hundred
+/// times the thickest scene the stability study renders (1e4 across the box).
+pub const MAX_OPTICAL_DEPTH: f64 = 1e6;
+
+/// Largest light intensity (W/sr): far beyond any physical scene, and
+/// small enough that radiance, its square (variances) and its sums over
+/// pixels stay finite in float32 outputs.
+pub const MAX_INTENSITY: f64 = 1e30;
+
+/// Most ray-marching steps per voxel (`render.step`, `render.photon_step`
+/// at least the smallest voxel size over this): 32 times the default's 2.
+pub const MAX_STEPS_PER_VOXEL: f64 = 64.0;
+
+/// Most samples per pixel (`render.spp`, `render.path_spp`). A pixel keeps
+/// a permutation of its `spp` samples (8 bytes each, per thread) and its
+/// work grows with them; 65,536 is 16,000 times the default's 4.
+pub const MAX_SPP: u32 = 1 << 16;
+
+/// Farthest a light, a camera or the point it looks at may be from the
+/// box's centre, in box diagonals: beyond this, differences of
+/// coordinates lose the box's scale (a camera at 1e300 has no direction).
+pub const MAX_DISTANCE_IN_DIAGONALS: f64 = 1e6;
+
+/// Largest memory a render may need beyond its photon map (which
+/// [`check_photons`] bounds): 16 GiB. See [`render_memory`].
+pub const MAX_RENDER_BYTES: u64 = 16 << 30;
+
+/// An estimate (upper bound) of the bytes a photon-mapping or path-traced
+/// render of `scene` holds besides its photon map: the images (radiance and
+/// standard error, 16 bytes a pixel), each camera's photon estimate (8
+/// bytes per grid node, every node counted, when the scene has photons and
+/// orders above 1), the light-depth grids (8 bytes per node per light) and
+/// each thread's sample permutation (8 bytes per sample per pixel).
+pub fn render_memory(scene: &Scene) -> u64 {
+    let cells = scene.density.data.len() as u64;
+    let pixels: u64 = scene.cameras.iter().map(|c| c.pixels() as u64).sum();
+    let m = &scene.medium;
+    let multiple = scene.render.photons > 0 && m.max_order > 1 && m.albedo > 0.0;
+    let estimates = if multiple { scene.cameras.len() as u64 * cells * 8 } else { 0 };
+    let depths = scene.lights.len() as u64 * cells * 8;
+    let threads = rayon::current_num_threads() as u64;
+    let per_pixel = u64::from(scene.render.spp.max(scene.render.path_spp)) * 8 * threads;
+    pixels.saturating_mul(16).saturating_add(estimates).saturating_add(depths).saturating_add(per_pixel)
+}
+
+/// Checks [`render_memory`] against [`MAX_RENDER_BYTES`]; the error names
+/// the cameras (or the samples per pixel) and the estimate.
+fn check_memory(scene: &Scene) -> Result<()> {
+    let bytes = render_memory(scene);
+    if bytes > MAX_RENDER_BYTES {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        bail!(
+            "cameras: {} cameras of {} pixels in all and {} lights on a grid of {} voxels need about {:.1} GiB \
+             (images, one photon estimate per camera, one light-depth grid per light), more than the {:.0} GiB a \
+             render may use: use fewer cameras or lights, a coarser grid or fewer pixels",
+            scene.cameras.len(),
+            scene.cameras.iter().map(|c| c.pixels() as u64).sum::<u64>(),
+            scene.lights.len(),
+            scene.density.data.len(),
+            gib(bytes),
+            gib(MAX_RENDER_BYTES)
+        );
     }
     Ok(())
+}
+
+/// `p` unless it is farther than [`MAX_DISTANCE_IN_DIAGONALS`] box
+/// diagonals from the centre of `density`'s box; `field` names it.
+fn near_the_box(p: Vec3, density: &Grid<f64>, field: &str) -> Result<Vec3> {
+    let diagonal = (density.hi - density.lo).norm();
+    let most = MAX_DISTANCE_IN_DIAGONALS * diagonal;
+    let centre = (density.hi + density.lo) * 0.5;
+    let distance = (p - centre).norm();
+    if distance.is_nan() || distance > most {
+        bail!(
+            "{field}: {:?} is {distance:e} from the volume's centre, more than {MAX_DISTANCE_IN_DIAGONALS:e} box \
+             diagonals ({most:e})",
+            p.as_slice()
+        );
+    }
+    Ok(p)
 }
 
 /// Checks that `photons` emitted photons fit in memory at `max_order`
@@ -108,8 +211,10 @@ pub fn check_photons(photons: u64, max_order: u32, field: &str) -> Result<()> {
 }
 
 fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
-    finite3(c.position.into(), &format!("cameras[{n}].position"))?;
-    finite3(c.look_at.into(), &format!("cameras[{n}].look_at"))?;
+    let position = finite3(c.position.into(), &format!("cameras[{n}].position"))?;
+    near_the_box(position, density, &format!("cameras[{n}].position"))?;
+    let look_at = finite3(c.look_at.into(), &format!("cameras[{n}].look_at"))?;
+    near_the_box(look_at, density, &format!("cameras[{n}].look_at"))?;
     finite3(c.up.into(), &format!("cameras[{n}].up"))?;
     if c.width == 0 || c.height == 0 {
         bail!("cameras[{n}]: image size {}x{} is empty", c.width, c.height);
