@@ -17,4 +17,5 @@ pub mod problem;
 pub mod progress;
 pub mod reconstruct;
 pub mod refine;
+pub mod study;
 pub mod train;

@@ -50,7 +50,8 @@ impl From<&LogRow> for CsvRow {
             train_loss: format!("{:.9e}", r.train_loss),
             held_out_loss: format!("{:.9e}", r.held_out_loss),
             held_out_rel_rmse: format!("{:.6}", r.held_out_rel_rmse),
-            density_rel_l1: format!("{:.6}", r.density_rel_l1),
+            // Empty without a known truth (the error is undefined), never NaN.
+            density_rel_l1: if r.density_rel_l1.is_finite() { format!("{:.6}", r.density_rel_l1) } else { String::new() },
             mean_density: format!("{:.6e}", r.mean_density),
             max_density: format!("{:.6e}", r.max_density),
             wall_s: format!("{:.3}", r.wall_s),
@@ -161,6 +162,6 @@ mod tests {
         let text = String::from_utf8(w.into_inner().unwrap()).unwrap();
         let mut lines = text.lines();
         assert_eq!(lines.next().unwrap(), LOG_COLUMNS.join(","));
-        assert_eq!(lines.next().unwrap(), "3,6.061075681e-4,0.000000000e0,0.853391,NaN,4.741452e-3,1.000000e0,0.007");
+        assert_eq!(lines.next().unwrap(), "3,6.061075681e-4,0.000000000e0,0.853391,,4.741452e-3,1.000000e0,0.007");
     }
 }
