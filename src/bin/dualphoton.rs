@@ -303,17 +303,20 @@ fn fit(a: FitArgs) -> Result<()> {
     if let Some(path) = &a.study {
         apply_study(&mut methods, &read_study(path)?)?;
     }
-    let prior = choose_prior(a.prior.as_deref(), scene.density.shape)?;
-    let mut method = if prior.is_some() { methods.prior } else { methods.paper };
-    a.method.apply(&mut method);
-    let method = method.seeded(a.seed);
-    method.check()?;
+    // Both methods are checked: which one runs is known only once the prior is found.
+    for (name, m) in [("paper", &mut methods.paper), ("prior", &mut methods.prior)] {
+        a.method.apply(m);
+        m.check().map_err(|e| Error(format!("{name}.{}", e.0)))?;
+        file::check_photons(m.train.photons, scene.medium.max_order, "--photons")?;
+    }
     let max_order = scene.medium.max_order;
-    file::check_photons(method.train.photons, max_order, "--photons")?;
-    let judge = FitQualitySettings { photons: a.judge_photons.unwrap_or(FitQualitySettings::default().photons), ..FitQualitySettings::default() };
+    let judge = FitQualitySettings::default();
+    let judge = FitQualitySettings { photons: a.judge_photons.unwrap_or(judge.photons), ..judge };
     file::check_photons(judge.photons, max_order, "--judge-photons")?;
     let all = read_targets(&a.images, &scene, "--images")?;
     let (targets, held) = all.split_at(n_train);
+    let prior = choose_prior(a.prior.as_deref(), scene.density.shape)?;
+    let method = if prior.is_some() { methods.prior } else { methods.paper }.seeded(a.seed);
 
     let mut settings = ReconstructSettings::new(method, scene.render.photons, scene.render.spp);
     settings.prior = prior;

@@ -98,4 +98,22 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_shipped_study_files_set_what_they_say() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/studies");
+        let read = |name: &str| {
+            let mut m = Methods::default();
+            apply_study(&mut m, &read_study(&dir.join(name)).unwrap()).unwrap();
+            m
+        };
+        // The paper's method as published: no refinement, the loss of one render as it is.
+        let published = read("paper_as_published.json");
+        assert_eq!((published.paper.refine.updates, published.paper.train.decorrelate), (0, false));
+        assert_eq!(published.prior, Methods::default().prior);
+        let orthonormal = read("orthonormal_weights.json");
+        assert_eq!(orthonormal.paper.train.gradient.weight_mode, WeightDirections::Orthonormal);
+        assert_eq!(orthonormal.paper.refine.updates, 0);
+        let count = std::fs::read_dir(&dir).unwrap().count();
+        assert_eq!(count, 2, "every study file in {} is read here", dir.display());
+    }
 }
