@@ -167,13 +167,13 @@ fn a_decorrelated_training_lowers_the_loss() {
 
 #[test]
 fn a_training_that_diverges_stops_with_an_error() {
-    // A step of 1e10 sends the latent, and with it the density, off to
-    // infinity: training must stop with a message, not go on with Inf.
+    // Steps of 1e30 send latent and weights, and with them the density, past
+    // what float32 holds: training must stop with a message, not go on with Inf.
     let paper = paper_problem(8, 3, 20_000, 0);
     let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
     let problem = Problem { scene: &paper.scene, targets, held_out, truth: Some(&paper.truth) };
     let mut model = initial_model(&paper.scene, targets, 0).unwrap();
-    let settings = TrainSettings { lr_latent: 1e10, lr_weights: 1e10, iterations: 4, ..exact_settings() };
+    let settings = TrainSettings { lr_latent: 1e30, lr_weights: 1e30, iterations: 4, ..exact_settings() };
     let e = train(&problem, &mut model, &settings, &mut |_, _, _| {}).unwrap_err().to_string();
     assert!(e.contains("no longer finite") && !e.contains('\n'), "{e}");
     for bad in [f64::NAN, 0.0, -1.0] {
@@ -283,8 +283,7 @@ fn the_per_voxel_refinement_lowers_the_loss() {
     let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
     let problem = Problem { scene: &paper.scene, targets, held_out, truth: Some(&paper.truth) };
     let model = initial_model(&paper.scene, targets, 0).unwrap();
-    let settings =
-        RefineSettings { updates: ITERATIONS, lr: 0.1, photons: 5_000, seed: 1, ..plain_refinement() };
+    let settings = RefineSettings { updates: ITERATIONS, lr: 0.1, photons: 5_000, seed: 1, ..plain_refinement() };
     let mut rows = 0;
     let refined = refine(&problem, &model, &settings, 0, &mut |_| rows += 1).unwrap();
     assert_eq!(rows, ITERATIONS);
@@ -341,7 +340,8 @@ fn the_additive_term_fills_voxels_the_decoder_leaves_empty() {
     let mut base = paper.truth.clone();
     base.data.iter_mut().zip(&model.mask).for_each(|(v, &m)| *v = if m { *v } else { 0.0 });
     let slab = |i: usize| (i / 256) % 16 >= 6 && (i / 256) % 16 < 10;
-    let emptied: Vec<usize> = (0..base.data.len()).filter(|&i| slab(i) && model.mask[i] && base.data[i] > 0.0).collect();
+    let emptied: Vec<usize> =
+        (0..base.data.len()).filter(|&i| slab(i) && model.mask[i] && base.data[i] > 0.0).collect();
     emptied.iter().for_each(|&i| base.data[i] = 0.0);
     let truth_mean = emptied.iter().map(|&i| paper.truth.data[i]).sum::<f64>() / emptied.len() as f64;
     assert!(emptied.len() >= 200, "the test needs hundreds of emptied voxels, got {}", emptied.len());
@@ -404,14 +404,26 @@ fn on_small_problem(f: impl FnOnce(&Problem, &Model)) {
 #[test]
 fn refining_a_given_density_is_refining_the_model_that_decodes_it() {
     on_small_problem(|problem, model| {
-        let settings =
-            RefineSettings { updates: 2, photons: 5_000, seed: 1, additive: true, ..plain_refinement() };
+        let settings = RefineSettings { updates: 2, photons: 5_000, seed: 1, additive: true, ..plain_refinement() };
         let base = model.density(&problem.scene.density);
         let from_model = refine(problem, model, &settings, 3, &mut |_| {}).unwrap();
         let from_density = refine_density(problem, &base, &model.mask, &settings, 3, &mut |_| {}).unwrap();
         assert_eq!(from_model.data, from_density.data);
         let err = refine_density(problem, &base, &model.mask[1..], &settings, 3, &mut |_| {}).unwrap_err();
         assert!(err.0.contains("must match the scene's grid"), "{}", err.0);
+    });
+}
+
+#[test]
+fn a_refinement_that_diverges_stops_with_an_error() {
+    // Steps of 1e6 on the log-factors overflow exp: the refinement must stop
+    // with a message instead of returning an Inf density.
+    on_small_problem(|problem, model| {
+        let settings = RefineSettings { updates: 5, lr: 1e6, photons: 5_000, seed: 1, ..plain_refinement() };
+        let e = refine(problem, model, &settings, 0, &mut |_| {}).unwrap_err().to_string();
+        assert!(e.contains("refinement") && e.contains("no longer finite"), "{e}");
+        let nan = RefineSettings { lr: f64::NAN, ..settings };
+        assert!(refine(problem, model, &nan, 0, &mut |_| {}).unwrap_err().to_string().contains("refine.lr"));
     });
 }
 
@@ -475,7 +487,8 @@ fn prior_eval_runs_every_method_at_smoke_size() {
     let floor = row("oracle_exact")["held_out_rel_rmse"].as_f64().unwrap();
     assert!(floor > 0.0 && floor.is_finite(), "{floor}");
     for name in ["paper", "prior", "prior_refine", "oracle_truth", "oracle_latent_refine"] {
-        let (held, eps) = (row(name)["held_out_rel_rmse"].as_f64().unwrap(), row(name)["rel_l1_epsilon"].as_f64().unwrap());
+        let (held, eps) =
+            (row(name)["held_out_rel_rmse"].as_f64().unwrap(), row(name)["rel_l1_epsilon"].as_f64().unwrap());
         eprintln!("{name}: held-out {held:.4} against the floor {floor:.4}, epsilon {eps:.3}");
         assert!(held > floor && eps > 0.0, "{name}: held-out {held} against the floor {floor}, epsilon {eps}");
     }

@@ -44,9 +44,12 @@ struct Args {
     /// Seed of the plume, the renders and the model.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Gradient estimator of training: fwd-full, fwd-rand, rev-sub (the paper's approximate learning),
-    /// rev-full [default: fwd-full].
-    #[arg(long, value_enum)]
+    /// Gradient estimator of training: fwd-full, fwd-rand, rev-sub (the paper's approximate learning), rev-full.
+    #[arg(long, value_enum, help = format!(
+        "Gradient estimator of training: fwd-full, fwd-rand, rev-sub (the paper's approximate learning), rev-full \
+         [default: {}]",
+        Method::paper().train.gradient.estimator.name()
+    ))]
     estimator: Option<Estimator>,
     #[command(flatten)]
     #[serde(flatten)]

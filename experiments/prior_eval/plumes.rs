@@ -195,4 +195,3 @@ pub fn read_rows(dir: &Path, plumes: &[Which]) -> Result<Vec<Row>> {
     }
     Ok(rows)
 }
-

@@ -3,11 +3,11 @@
 
 use super::plumes::{Row, Which, ROWS};
 use dualphoton::error::Result;
+use dualphoton::eval::metrics::{block_mask, block_means};
 use dualphoton::image::Image;
 use dualphoton::io::figures::estimate_scatter;
 use dualphoton::io::npy;
 use dualphoton::io::panels::labelled_strip;
-use dualphoton::eval::metrics::{block_mask, block_means};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -140,4 +140,3 @@ fn slice(d: &[f64], res: usize, y: usize) -> Image {
     let data = (0..res * res).map(|p| d[((p / res) * res + y) * res + p % res]).collect();
     Image { width: res, height: res, data }
 }
-

@@ -51,7 +51,11 @@ impl From<&LogRow> for CsvRow {
             held_out_loss: format!("{:.9e}", r.held_out_loss),
             held_out_rel_rmse: format!("{:.6}", r.held_out_rel_rmse),
             // Empty without a known truth (the error is undefined), never NaN.
-            density_rel_l1: if r.density_rel_l1.is_finite() { format!("{:.6}", r.density_rel_l1) } else { String::new() },
+            density_rel_l1: if r.density_rel_l1.is_finite() {
+                format!("{:.6}", r.density_rel_l1)
+            } else {
+                String::new()
+            },
             mean_density: format!("{:.6e}", r.mean_density),
             max_density: format!("{:.6e}", r.max_density),
             wall_s: format!("{:.3}", r.wall_s),

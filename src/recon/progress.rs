@@ -52,7 +52,9 @@ impl fmt::Display for Progress<'_> {
         let r = self.row;
         match self.part {
             Part::Training { total } => write!(f, "training {}/{total}", r.iteration + 1)?,
-            Part::Refinement { first, total } => write!(f, "refinement {}/{total}", r.iteration + 1 - first.min(r.iteration))?,
+            Part::Refinement { first, total } => {
+                write!(f, "refinement {}/{total}", r.iteration + 1 - first.min(r.iteration))?
+            }
         }
         write!(f, "  loss {:.4e}", r.train_loss)?;
         if r.held_out_loss != 0.0 {

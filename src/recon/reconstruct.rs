@@ -4,9 +4,9 @@
 //! estimate. It computes and returns; [`super::outputs`] writes the files.
 
 use super::level::Level;
+use super::methods::Method;
 use super::paper;
 use super::problem::Problem;
-use super::methods::Method;
 use super::progress::{fine_over_coarse, Eta, Part, Phase, Progress};
 use super::refine::{refine, RefineSettings};
 use super::train::{check_finite, coarse_updates, train, LogRow, TrainSettings};

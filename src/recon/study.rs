@@ -15,8 +15,8 @@ use std::path::Path;
 pub fn read_study(path: &Path) -> Result<Value> {
     let text =
         std::fs::read_to_string(path).map_err(|e| Error(format!("--study: cannot read {}: {e}", path.display())))?;
-    let value: Value = serde_json::from_str(&text)
-        .map_err(|e| Error(format!("--study: {} is not JSON: {e}", path.display())))?;
+    let value: Value =
+        serde_json::from_str(&text).map_err(|e| Error(format!("--study: {} is not JSON: {e}", path.display())))?;
     if !value.is_object() {
         return Err(Error(format!("--study: {} must hold a JSON object of settings", path.display())));
     }
@@ -44,7 +44,12 @@ pub fn apply_study<T: Serialize + DeserializeOwned>(settings: &mut T, study: &Va
 
 /// The settings `study` sets, each as (dotted name, value), checked to
 /// exist in `current` (the settings as JSON).
-fn collect_leaves<'a>(study: &'a Value, current: &Value, prefix: String, out: &mut Vec<(String, &'a Value)>) -> Result<()> {
+fn collect_leaves<'a>(
+    study: &'a Value,
+    current: &Value,
+    prefix: String,
+    out: &mut Vec<(String, &'a Value)>,
+) -> Result<()> {
     let Value::Object(map) = study else {
         out.push((prefix, study));
         return Ok(());

@@ -147,14 +147,15 @@ pub(super) fn check_renders(part: &str, photons: u64, spp: u32) -> Result<()> {
 /// Most camera samples per pixel an update may take (far above any useful value).
 pub const MAX_SPP: u32 = 4096;
 
-/// Errors if `density` is no longer finite (a step too large sent the fit
-/// off): `what` and the update name where it happened.
+/// Errors if `density` is no longer finite as the float32 its file holds
+/// (a step too large sent the fit off): `what` and the update name where
+/// it happened.
 pub(super) fn check_finite(density: &Grid<f64>, what: &str, update: usize) -> Result<()> {
-    if density.data.iter().all(|v| v.is_finite()) {
+    if density.data.iter().all(|v| v.abs() <= f32::MAX as f64) {
         return Ok(());
     }
     Err(Error(format!(
-        "{what}: the density is no longer finite at update {} (a learning rate too large?); nothing more was written",
+        "{what}: the density is no longer finite (in float32) at update {} (a learning rate too large?)",
         update + 1
     )))
 }
@@ -283,4 +284,3 @@ pub(super) fn log_row(
         wall_s,
     }
 }
-
