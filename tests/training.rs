@@ -7,6 +7,7 @@ use dualphoton::grad::Estimator;
 use dualphoton::model::Model;
 use dualphoton::recon::estimator::EstimatorSettings;
 use dualphoton::recon::level::Level;
+use dualphoton::recon::methods::Method;
 use dualphoton::recon::problem::{paper_problem, Problem};
 use dualphoton::recon::reconstruct::initial_model;
 use dualphoton::recon::refine::{refine, refine_density, RefineSettings};
@@ -64,9 +65,13 @@ fn experiment_table1_smoke_run_writes_everything() {
     for key in ["seed", "paper", "prior", "fit_photons", "target_photons", "hull_voxels", "git", "wall_s", "threads"] {
         assert!(manifest.get(key).is_some(), "manifest lacks {key}");
     }
-    // The settings of both methods, every one by name (the smoke run's 3 training updates among them).
-    assert_eq!(manifest["paper"]["train"]["iterations"], 3);
-    assert_eq!(manifest["paper"]["train"]["gradient"]["weight_mode"], "guided");
+    // No option given: both methods are the library's defaults, the paper's
+    // as `--smoke` shortens it (every setting by name in the manifest).
+    let mut paper = Method::paper();
+    (paper.train.iterations, paper.train.gradient.weight_directions, paper.refine.updates) = (3, 4, 3);
+    (paper.train.photons, paper.refine.photons) = (5_000, 5_000);
+    assert_eq!(manifest["paper"], serde_json::to_value(paper).unwrap());
+    assert_eq!(manifest["prior"], serde_json::to_value(Method::prior()).unwrap());
     let log = std::fs::read_to_string(dir.join("log.csv")).unwrap();
     assert_eq!(log.lines().count(), 7, "header + 3 training + 3 refinement updates");
     assert!(!log.contains("NaN") && !log.contains("inf"), "{log}");
