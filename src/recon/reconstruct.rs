@@ -177,8 +177,8 @@ pub fn reconstruct(
         if let (true, Some(image), Some(width)) = (wanted, images.get(camera), truth_width) {
             snapshots.push((row.iteration, upscale(image, width)));
         }
-        let phase = Part::Training { total: iterations };
-        progress(&Progress { row, part: phase, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
+        let part = Part::Training { total: iterations };
+        progress(&Progress { row, part, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
         log.push(row.clone());
     })?;
     let train_s = train_started.elapsed().as_secs_f64();
