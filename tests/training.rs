@@ -82,6 +82,24 @@ fn experiment_table1_smoke_run_writes_everything() {
 }
 
 #[test]
+fn the_eight_views_study_file_sets_cameras_and_method() {
+    // experiments/studies/eight_views.json: 4 more training cameras, rev-full, no refinement.
+    let dir = std::env::temp_dir().join(format!("dualphoton-eight-views-{}", std::process::id()));
+    let study = concat!(env!("CARGO_MANIFEST_DIR"), "/experiments/studies/eight_views.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_experiment_table1"))
+        .args(["--smoke", "--study", study, "--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["extra_views"], 4);
+    assert_eq!(manifest["paper"]["train"]["gradient"]["estimator"], "rev-full");
+    let table = std::fs::read_to_string(dir.join("table1.md")).unwrap();
+    assert!(table.contains("8 training cameras") && table.contains("then 0 per-voxel refinement updates"), "{table}");
+}
+
+#[test]
 fn rev_full_training_runs_and_logs_finite_losses() {
     // rev-full on a 16^3 plume, through the experiment binary (that the loss
     // really falls is `a_short_training_lowers_the_loss`).
