@@ -7,7 +7,7 @@
 //! The fitted density is then rendered and judged like a reconstruction
 //! (`fit_quality.csv`): the image misfit that the model alone leaves.
 //!
-//! Writes `results/decoder_capacity/{capacity.csv, fit_quality.csv,
+//! Writes `results/studies/decoder_capacity/{capacity.csv, fit_quality.csv,
 //! density_fitted.npy, summary.md, manifest.json}`.
 
 use clap::Parser;
@@ -47,7 +47,7 @@ struct Args {
     #[arg(long, default_value_t = 50)]
     every: usize,
     /// Output directory.
-    #[arg(long, default_value = "results/decoder_capacity")]
+    #[arg(long, default_value = "results/studies/decoder_capacity")]
     out: PathBuf,
     /// A tiny run, to check that everything works.
     #[arg(long)]

@@ -379,3 +379,109 @@ fn fit_on_a_grid_the_decoder_cannot_make_is_an_error() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(stderr.contains("4 * 2^n voxels per side") && stderr.trim_end().ends_with("got 24"), "{stderr}");
 }
+
+/// A valid 8^3 scene with an image per camera in `dir` (scene path, images directory).
+fn scene_with_images(dir: &Path) -> (String, String) {
+    let path = write_scene(dir, &valid_scene(), &blob(8), &[8, 8, 8]);
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).unwrap();
+    for cam in 0..2 {
+        npy::write_f32(&images.join(format!("cam{cam}.npy")), &[6, 8], &[0.5; 48]).unwrap();
+    }
+    (path.to_str().unwrap().into(), images.to_str().unwrap().into())
+}
+
+#[test]
+fn fit_checks_every_option_before_any_work() {
+    let dir = temp_dir("fit-options");
+    let (scene, images) = scene_with_images(&dir);
+    let out = dir.join("out");
+    let study = |name: &str, text: &str| {
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["--threads".into(), "0".into()], "--threads"),
+        (vec!["--threads".into(), "100000".into()], "--threads"),
+        (vec!["--spp".into(), "0".into()], "--spp"),
+        (vec!["--photons".into(), "0".into()], "--photons"),
+        (vec!["--time-budget=-1".into()], "--time-budget"),
+        (vec!["--time-budget".into(), "NaN".into()], "--time-budget"),
+        (vec!["--held-out".into(), "2".into()], "--held-out"),
+        (
+            vec!["--study".into(), study("unknown", r#"{"paper": {"train": {"lr_latnet": 1}}}"#)],
+            "'paper.train.lr_latnet'",
+        ),
+        (
+            vec!["--study".into(), study("type", r#"{"prior": {"refine": {"updates": "many"}}}"#)],
+            "'prior.refine.updates'",
+        ),
+        (vec!["--study".into(), study("lanes", r#"{"paper": {"train": {"gradient": {"lanes": 3}}}}"#)], "lanes"),
+        (vec!["--study".into(), study("blocks", r#"{"prior": {"refine": {"blocks": [1]}}}"#)], "prior.refine.blocks"),
+        (
+            vec!["--study".into(), study("coarse", r#"{"paper": {"train": {"coarse_fraction": 1.5}}}"#)],
+            "coarse_fraction",
+        ),
+        (vec!["--study".into(), study("lr", r#"{"paper": {"train": {"lr_latent": -1}}}"#)], "lr_latent"),
+        (vec!["--study".into(), study("refine_lr", r#"{"paper": {"refine": {"lr": 0}}}"#)], "refine.lr"),
+        (
+            vec![
+                "--study".into(),
+                study("directions", r#"{"paper": {"train": {"gradient": {"weight_directions": 1000000}}}}"#),
+            ],
+            "weight_directions",
+        ),
+        (vec!["--study".into(), dir.join("missing.json").to_str().unwrap().into()], "--study"),
+        (vec!["--images".into(), dir.join("nowhere").to_str().unwrap().into()], "--images"),
+    ];
+    for (extra, field) in cases {
+        let mut args = vec!["fit", "--scene", &scene, "--out", out.to_str().unwrap(), "--prior", "none"];
+        if !extra.contains(&"--images".to_string()) {
+            args.extend(["--images", &images]);
+        }
+        args.extend(extra.iter().map(String::as_str));
+        let result = dualphoton(&args);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        // `--images` is read after the method is announced; every other option is refused before.
+        let error = stderr.lines().last().unwrap_or("").to_string();
+        assert!(!result.status.success() && !stderr.contains("panicked"), "{extra:?}: {stderr}");
+        assert!(error.starts_with("error: ") && error.contains(field), "{extra:?} does not name {field}: {stderr}");
+        assert!(!stderr.contains("training 1/"), "{extra:?}: work started before the error: {stderr}");
+        assert!(!out.join("log.csv").exists(), "{extra:?} wrote output");
+    }
+}
+
+#[test]
+fn judge_names_both_of_its_references_and_fit_names_images() {
+    let dir = temp_dir("judge-options");
+    let (scene, images) = scene_with_images(&dir);
+    npy::write_f32(&dir.join("estimate.npy"), &[8, 8, 8], &blob(8)).unwrap();
+    let estimate = dir.join("estimate.npy");
+    let out = dualphoton(&["judge", "--scene", &scene, "--estimate", estimate.to_str().unwrap()]);
+    expect_error(&out, "--truth");
+    expect_error(&out, "--images");
+    std::fs::remove_file(Path::new(&images).join("cam1.npy")).unwrap();
+    let out = dualphoton(&["judge", "--scene", &scene, "--estimate", estimate.to_str().unwrap(), "--images", &images]);
+    expect_error(&out, "--images");
+    let out = dualphoton(&["judge", "--scene", &scene, "--estimate", estimate.to_str().unwrap(), "--spp", "0"]);
+    assert!(!out.status.success());
+}
+
+#[test]
+fn the_option_surface_is_small() {
+    let options = |bin: &str, args: &[&str]| {
+        let out = Command::new(bin).args(args).arg("--help").output().unwrap();
+        let help = String::from_utf8_lossy(&out.stdout).into_owned();
+        let n = help.lines().filter(|l| l.trim_start().starts_with("--")).count();
+        (n, help)
+    };
+    let (fit, help) = options(env!("CARGO_BIN_EXE_dualphoton"), &["fit"]);
+    assert!(fit <= 15 && help.lines().count() <= 25, "fit: {fit} options\n{help}");
+    // The library's defaults, computed, not copied.
+    assert!(help.contains("[default: 250 (paper's method), 60 (learned prior)]"), "{help}");
+    let (table1, help) = options(env!("CARGO_BIN_EXE_experiment_table1"), &[]);
+    assert!(table1 <= 12, "experiment_table1: {table1} options\n{help}");
+    let (prior_eval, help) = options(env!("CARGO_BIN_EXE_prior_eval"), &[]);
+    assert!(prior_eval <= 16, "prior_eval: {prior_eval} options\n{help}");
+}

@@ -9,10 +9,10 @@ use dualphoton::prior::train::{initial_state, targets, train, PriorSettings};
 use dualphoton::prior::training_set::training_set;
 use dualphoton::prior::Prior;
 use dualphoton::recon::level::Level;
-use dualphoton::recon::methods::{prior_method, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::methods::Method;
 use dualphoton::recon::param_grad;
 use dualphoton::recon::problem::{paper_problem, Problem};
-use dualphoton::recon::reconstruct::{prior_model, reconstruct};
+use dualphoton::recon::reconstruct::{prior_model, reconstruct, ReconstructSettings};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::render_photon;
 use dualphoton::scene::rig::HELD_OUT_CAMERA;
@@ -67,9 +67,11 @@ fn a_fit_with_the_prior_moves_only_the_latent_and_lowers_the_image_loss() {
     let (targets, held_out) = paper.images.split_at(HELD_OUT_CAMERA);
     let problem = Problem { scene: &paper.scene, targets, held_out, truth: Some(&paper.truth) };
     // The latent alone (no refinement after it), so that the loss it lowers is its own (measured 0.83x).
-    let fit = PriorFitArgs { prior_updates: 6, prior_refine: 0, ..PriorFitArgs::default() };
-    let renders = UpdateRenders { photons: 5_000, ..UpdateRenders::default() };
-    let settings = prior_method(prior.clone(), &fit, renders, 20_000, 2);
+    let mut method = Method::prior();
+    (method.train.iterations, method.refine.updates) = (6, 0);
+    (method.train.photons, method.refine.photons) = (5_000, 5_000);
+    let mut settings = ReconstructSettings::new(method, 20_000, 2);
+    settings.prior = Some(prior.clone());
     let r = reconstruct(&problem, &settings, &mut |_| {}).unwrap();
     assert_eq!(r.model.w, prior.w, "the prior's weights stay fixed");
     assert!(r.model.z.iter().any(|&z| z != 0.0), "the latent moved");
@@ -99,7 +101,7 @@ fn fit_uses_a_prior_it_is_given_and_names_what_is_wrong_with_one() {
     let json = format!("{}/scene.json", p("scene16"));
     ok(&["scene", "--res", "16", "--out", &p("scene16")]);
     ok(&["render", "--scene", &json, "--out", &p("images16"), "--photons", "5000"]);
-    let common = ["--held-out", "1", "--prior-updates", "2", "--prior-refine", "1", "--judge-photons", "5000"];
+    let common = ["--held-out", "1", "--iterations", "2", "--refine", "1", "--judge-photons", "5000"];
     let prior = dir.to_str().unwrap();
     let (images16, fit16) = (p("images16"), p("fit16"));
     let args =

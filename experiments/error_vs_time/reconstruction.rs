@@ -5,9 +5,9 @@ use dualphoton::error::Result;
 use dualphoton::eval::metrics::{pearson, rel_l1, rel_rmse};
 use dualphoton::grad::Estimator;
 use dualphoton::io::plot::{line_chart, Axes, Series};
-use dualphoton::recon::methods::{paper_method, PaperFitArgs, UpdateRenders};
+use dualphoton::recon::methods::Method;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
-use dualphoton::recon::reconstruct::reconstruct;
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
 use dualphoton::scene::rig;
 use std::fmt::Write as _;
 
@@ -41,16 +41,12 @@ pub fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut Strin
     );
     for &estimator in estimators {
         // The budgets stop both parts; the update counts are only caps.
-        let fit = PaperFitArgs {
-            estimator,
-            iterations: UPDATE_CAP,
-            time_budget: Some(args.budget),
-            refine: if args.refine_budget > 0.0 { UPDATE_CAP } else { 0 },
-            refine_budget: Some(args.refine_budget),
-            ..PaperFitArgs::default()
-        };
-        let renders = UpdateRenders { seed: args.seed, ..UpdateRenders::default() };
-        let settings = paper_method(&fit, renders, target_photons, 8)?;
+        let mut method = Method::paper().seeded(args.seed);
+        method.train.gradient.estimator = estimator;
+        (method.train.iterations, method.train.time_budget) = (UPDATE_CAP, Some(args.budget));
+        method.refine.updates = if args.refine_budget > 0.0 { UPDATE_CAP } else { 0 };
+        method.refine.time_budget = (args.refine_budget > 0.0).then_some(args.refine_budget);
+        let settings = ReconstructSettings::new(method, target_photons, 8);
         let result = reconstruct(&problem, &settings, &mut |p| {
             eprint!(
                 "\r{}: update {}  {:.0}/{:.0} s  eps {:.3}   ",

@@ -153,8 +153,13 @@ fn run(mut args: Args) -> Result<()> {
     let mut midway = initial.clone();
     eprintln!("training {} updates for the midway parameters ...", args.midway);
     // The default run's first updates: all of them are coarse there (80 % of 250).
-    let settings =
-        TrainSettings { iterations: args.midway, seed: args.seed, coarse_fraction: 1.0, ..Default::default() };
+    let settings = TrainSettings {
+        iterations: args.midway,
+        seed: args.seed,
+        coarse_fraction: 1.0,
+        decorrelate: false,
+        ..Default::default()
+    };
     train(&problem, &mut midway, &settings, &mut |row, _, _| {
         eprint!("\r  update {}/{}  loss {:.4e}   ", row.iteration + 1, args.midway, row.train_loss)
     })?;

@@ -1,6 +1,6 @@
 //! The `dualphoton` command line: `render`, `grad`, `fit`, `judge` and `scene` (see `--help`).
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
@@ -11,10 +11,11 @@ use dualphoton::image::Image;
 use dualphoton::io::rows::write_rows;
 use dualphoton::io::{npy, png};
 use dualphoton::prior::{self, Prior};
-use dualphoton::recon::methods::{paper_method, prior_method, PaperFitArgs, PriorFitArgs, UpdateRenders};
+use dualphoton::recon::methods::{MethodOptions, Methods};
 use dualphoton::recon::outputs::Outputs;
 use dualphoton::recon::problem::Problem;
-use dualphoton::recon::reconstruct::reconstruct;
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::study::{apply_study, read_study};
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path_with_progress, PathOptions};
 use dualphoton::render::render_photon;
@@ -44,184 +45,374 @@ enum Preset {
     Paper,
 }
 
-/// Parsed once per run, so the size of the largest variant does not matter.
-#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum Command {
     /// Render every camera of a scene to DIR/cam0.npy, DIR/cam0.png, DIR/cam1.npy, ...
-    Render {
-        /// Scene file (JSON, docs/DESIGN.md §1).
-        #[arg(long)]
-        scene: PathBuf,
-        /// Output directory (created if missing).
-        #[arg(long)]
-        out: PathBuf,
-        /// Rendering method.
-        #[arg(long, value_enum, default_value = "photon")]
-        method: Method,
-        /// Seed of every random stream (default: the scene's render.seed, else 0).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads (default: all cores). Results do not depend on it.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Photons emitted (default: render.photons, else 300000).
-        #[arg(long)]
-        photons: Option<u64>,
-        /// Photon kernel radius in world units (default: render.kernel_radius, else 1 voxel).
-        #[arg(long)]
-        radius: Option<f64>,
-        /// Ray-marching step in world units (default: render.step, else half a voxel).
-        #[arg(long)]
-        step: Option<f64>,
-        /// Samples per pixel of the photon renderer (default: render.spp, else 4).
-        #[arg(long)]
-        spp: Option<u32>,
-        /// Samples per pixel of the path tracer (default: render.path_spp, else 256).
-        #[arg(long)]
-        path_spp: Option<u32>,
-        /// The lights' transmittance: auto (light-depth grids unless the medium is too thick for them),
-        /// grid, or marched (a shadow ray from every sample: exact, slower; for checks).
-        #[arg(long, value_enum)]
-        shadows: Option<Shadows>,
-        /// Fixed PNG white point (radiance mapped to full white); default per image.
-        #[arg(long)]
-        white: Option<f64>,
-    },
+    Render(RenderArgs),
     /// Gradient of the MSE between the rendered images and target images with
     /// respect to every density voxel, written as float32 (Z, Y, X).
-    Grad {
-        /// Scene file (JSON, docs/DESIGN.md §1).
-        #[arg(long)]
-        scene: PathBuf,
-        /// Directory with one target image per camera: cam0.npy, cam1.npy, ... (as `render` writes them).
-        #[arg(long)]
-        target: PathBuf,
-        /// Output file (.npy).
-        #[arg(long)]
-        out: PathBuf,
-        /// Gradient estimator.
-        #[arg(long, value_enum, default_value = "rev-full")]
-        estimator: Estimator,
-        /// Seed of the render (the images differentiated are those `render --seed N` writes).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Seed of the estimator's own draws (pixel/path subsets, random directions).
-        #[arg(long, default_value_t = 0)]
-        estimator_seed: u64,
-        /// Directions per forward pass: 1, 2, 4, ..., 64.
-        #[arg(long, default_value_t = 8)]
-        lanes: usize,
-        /// rev-sub: pixels differentiated per gradient (the paper: 1000).
-        #[arg(long, default_value_t = 1000)]
-        pixels: usize,
-        /// rev-sub: photon paths differentiated per gradient (the paper: 5000).
-        #[arg(long, default_value_t = 5000)]
-        paths: usize,
-        /// Also compute these voxels by forward mode and print both: "k,j,i;k,j,i;...".
-        #[arg(long)]
-        voxels: Option<String>,
-        /// Worker threads (default: all cores). Results do not depend on it.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Photons emitted (default: the scene's render.photons).
-        #[arg(long)]
-        photons: Option<u64>,
-    },
-    /// Reconstruct a density from images: visual hull, 64-d latent + small
-    /// decoder, Adam on the image MSE. Writes density_estimated.npy,
-    /// density_initial.npy, hull.npy, log.csv, fig5_loss.svg, fit_quality.csv
-    /// (the estimate against your images, as `judge --images`) into OUT, and
-    /// camera 2 during training (fig6_camera2.png/.svg) and the first
-    /// held-out camera (fig8_held_out.png/.svg) where those cameras exist.
-    Fit {
-        /// Scene file: cameras, lights, medium; its density only fixes the grid (shape and box).
-        #[arg(long)]
-        scene: PathBuf,
-        /// Directory with one image per camera: cam0.npy, cam1.npy, ...
-        #[arg(long)]
-        images: PathBuf,
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Cameras held out from training (the last N of the scene).
-        #[arg(long, default_value_t = 0)]
-        held_out: usize,
-        #[command(flatten)]
-        paper_fit: PaperFitArgs,
-        #[command(flatten)]
-        renders: UpdateRenders,
-        /// Photons of the renders that judge the fit (fit_quality.csv; 8 samples per pixel).
-        #[arg(long, default_value_t = 1_000_000)]
-        judge_photons: u64,
-        /// Seed of training.
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// A learned prior's directory, or `none` for the paper's per-scene decoder. Default: the committed
-        /// prior (models/plume64) when it decodes the scene's grid, else the per-scene decoder.
-        #[arg(long)]
-        prior: Option<String>,
-        #[command(flatten)]
-        prior_fit: PriorFitArgs,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-    },
+    Grad(GradArgs),
+    /// Reconstruct a density from images: visual hull, then the learned prior's
+    /// 64-d latent (or the paper's per-scene decoder), then a per-voxel
+    /// refinement. Writes density_estimated.npy, density_initial.npy, hull.npy,
+    /// log.csv, fig5_loss.svg, fit_quality.csv (the estimate against your
+    /// images, as `judge --images`; also printed) into OUT, and camera 2
+    /// during training (fig6_camera2.png/.svg) and the first held-out camera
+    /// (fig8_held_out.png/.svg) where those cameras exist.
+    Fit(FitArgs),
     /// Judge how well a density explains images: per camera, the relative RMSE
     /// at 1x1, 2x2 and 4x4 pixel blocks of its high-quality render against the
     /// truth's (--truth) or against images (--images), next to the noise floor.
-    Judge {
-        /// Scene file: cameras, lights, medium (its density is not used).
-        #[arg(long)]
-        scene: PathBuf,
-        /// The density to judge (.npy, the scene's grid shape).
-        #[arg(long)]
-        estimate: PathBuf,
-        /// The true density (.npy): truth and estimate are rendered with the same seed.
-        #[arg(long, conflicts_with = "images", required_unless_present = "images")]
-        truth: Option<PathBuf>,
-        /// Or images of every camera (DIR/cam0.npy, ...) when no truth is known.
-        #[arg(long)]
-        images: Option<PathBuf>,
-        /// Cameras held out from training (the last N of the scene), labelled so.
-        #[arg(long, default_value_t = 0)]
-        held_out: usize,
-        /// Photons per render.
-        #[arg(long, default_value_t = 1_000_000)]
-        photons: u64,
-        /// Samples per pixel per render.
-        #[arg(long, default_value_t = 8)]
-        spp: u32,
-        /// Write the table as CSV here too.
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-    },
+    Judge(JudgeArgs),
     /// Write a built-in scene (scene.json + density.npy) to DIR.
-    Scene {
-        /// Which scene.
-        #[arg(long, value_enum, default_value = "paper")]
-        preset: Preset,
-        /// Density grid resolution (res^3) and image size (res x res).
-        #[arg(long, default_value_t = 64)]
-        res: usize,
-        /// Seed of the plume.
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// Use this ScalarFlow frame (.npz, key `data`, shape (z, y, x, 1)) instead of the built-in plume.
-        #[arg(long)]
-        from_scalarflow: Option<PathBuf>,
-        /// Output directory (created if missing).
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Scene(SceneArgs),
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Scene file (JSON, docs/DESIGN.md §1).
+    #[arg(long)]
+    scene: PathBuf,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Rendering method.
+    #[arg(long, value_enum, default_value = "photon")]
+    method: Method,
+    /// Seed of every random stream (default: the scene's render.seed, else 0).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Photons emitted (default: render.photons, else 300000).
+    #[arg(long)]
+    photons: Option<u64>,
+    /// Photon kernel radius in world units (default: render.kernel_radius, else 1 voxel).
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Ray-marching step in world units (default: render.step, else half a voxel).
+    #[arg(long)]
+    step: Option<f64>,
+    /// Samples per pixel of the photon renderer (default: render.spp, else 4).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Samples per pixel of the path tracer (default: render.path_spp, else 256).
+    #[arg(long)]
+    path_spp: Option<u32>,
+    /// The lights' transmittance: auto (light-depth grids unless the medium is too thick for them),
+    /// grid, or marched (a shadow ray from every sample: exact, slower; for checks).
+    #[arg(long, value_enum)]
+    shadows: Option<Shadows>,
+    /// Fixed PNG white point (radiance mapped to full white); default per image.
+    #[arg(long)]
+    white: Option<f64>,
+}
+
+#[derive(Args)]
+struct GradArgs {
+    /// Scene file (JSON, docs/DESIGN.md §1).
+    #[arg(long)]
+    scene: PathBuf,
+    /// Directory with one target image per camera: cam0.npy, cam1.npy, ... (as `render` writes them).
+    #[arg(long)]
+    target: PathBuf,
+    /// Output file (.npy).
+    #[arg(long)]
+    out: PathBuf,
+    /// Gradient estimator.
+    #[arg(long, value_enum, default_value = "rev-full")]
+    estimator: Estimator,
+    /// Seed of the render (the images differentiated are those `render --seed N` writes).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Seed of the estimator's own draws (pixel/path subsets, random directions).
+    #[arg(long, default_value_t = 0)]
+    estimator_seed: u64,
+    /// Directions per forward pass: 1, 2, 4, ..., 64.
+    #[arg(long, default_value_t = 8)]
+    lanes: usize,
+    /// rev-sub: pixels differentiated per gradient (the paper: 1000).
+    #[arg(long, default_value_t = 1000)]
+    pixels: usize,
+    /// rev-sub: photon paths differentiated per gradient (the paper: 5000).
+    #[arg(long, default_value_t = 5000)]
+    paths: usize,
+    /// Also compute these voxels by forward mode and print both: "k,j,i;k,j,i;...".
+    #[arg(long)]
+    voxels: Option<String>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Photons emitted (default: the scene's render.photons).
+    #[arg(long)]
+    photons: Option<u64>,
+}
+
+#[derive(Args)]
+struct FitArgs {
+    /// Scene file: cameras, lights, medium; its density only fixes the grid (shape and box).
+    #[arg(long)]
+    scene: PathBuf,
+    /// Directory with one image per camera: cam0.npy, cam1.npy, ...
+    #[arg(long)]
+    images: PathBuf,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// Cameras held out from training (the last N of the scene).
+    #[arg(long, default_value_t = 0)]
+    held_out: usize,
+    /// A learned prior's directory, or `none` for the paper's per-scene decoder. Default: the project's
+    /// prior (models/plume64, beside the working directory or in the source tree) when it decodes the
+    /// scene's grid, else the per-scene decoder; an error if it cannot be found.
+    #[arg(long)]
+    prior: Option<String>,
+    #[command(flatten)]
+    method: MethodOptions,
+    /// Photons of the renders that judge the fit (fit_quality.csv).
+    #[arg(long, help = format!(
+        "Photons of the renders that judge the fit (fit_quality.csv, {} spp) [default: {}]",
+        FitQualitySettings::default().spp, FitQualitySettings::default().photons
+    ))]
+    judge_photons: Option<u64>,
+    /// Seed of every random stream of the fit.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// A study file: JSON setting any library setting by name, {"paper": {"train": {...}, "refine": {...}},
+    /// "prior": {...}} (experiments/studies/ has examples); the options above override it.
+    #[arg(long)]
+    study: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct JudgeArgs {
+    /// Scene file: cameras, lights, medium (its density is not used).
+    #[arg(long)]
+    scene: PathBuf,
+    /// The density to judge (.npy, the scene's grid shape).
+    #[arg(long)]
+    estimate: PathBuf,
+    /// The true density (.npy): truth and estimate are rendered with the same seed.
+    #[arg(long, conflicts_with = "images")]
+    truth: Option<PathBuf>,
+    /// Or images of every camera (DIR/cam0.npy, ...) when no truth is known.
+    #[arg(long)]
+    images: Option<PathBuf>,
+    /// Cameras held out from training (the last N of the scene), labelled so.
+    #[arg(long, default_value_t = 0)]
+    held_out: usize,
+    /// Photons per render.
+    #[arg(long, default_value_t = FitQualitySettings::default().photons)]
+    photons: u64,
+    /// Samples per pixel per render.
+    #[arg(long, default_value_t = FitQualitySettings::default().spp)]
+    spp: u32,
+    /// Write the table as CSV here too.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(Args)]
+struct SceneArgs {
+    /// Which scene.
+    #[arg(long, value_enum, default_value = "paper")]
+    preset: Preset,
+    /// Density grid resolution (res^3) and image size (res x res).
+    #[arg(long, default_value_t = 64)]
+    res: usize,
+    /// Seed of the plume.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Use this ScalarFlow frame (.npz, key `data`, shape (z, y, x, 1)) instead of the built-in plume.
+    #[arg(long)]
+    from_scalarflow: Option<PathBuf>,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn main() -> ExitCode {
+    dualphoton::process::keep_freed_memory();
+    let result = match Cli::parse().command {
+        Command::Render(a) => render(a),
+        Command::Grad(a) => grad(a),
+        Command::Fit(a) => fit(a),
+        Command::Judge(a) => judge(a),
+        Command::Scene(a) => scene(a),
+    };
+    dualphoton::error::exit_code(result)
+}
+
+fn render(a: RenderArgs) -> Result<()> {
+    set_threads(a.threads)?;
+    let mut scene = file::load(&a.scene)?;
+    let r = &mut scene.render;
+    r.seed = a.seed.unwrap_or(r.seed);
+    r.photons = a.photons.unwrap_or(r.photons);
+    r.kernel_radius = a.radius.or(r.kernel_radius);
+    r.step = a.step.or(r.step);
+    r.spp = a.spp.unwrap_or(r.spp);
+    r.path_spp = a.path_spp.unwrap_or(r.path_spp);
+    r.shadows = a.shadows.unwrap_or(r.shadows);
+    file::validate(&scene)?;
+    if let Some(w) = a.white.filter(|w| !(w.is_finite() && *w > 0.0)) {
+        return Err(Error(format!("--white: {w} must be finite and > 0")));
+    }
+    match a.method {
+        Method::Photon => render_photon_cmd(&scene, &a.out, a.white),
+        Method::Path => render_path_cmd(&scene, &a.out, a.white),
+    }
+}
+
+fn grad(a: GradArgs) -> Result<()> {
+    set_threads(a.threads)?;
+    if !LANES.contains(&a.lanes) {
+        return Err(Error(format!("--lanes: {} is not one of {LANES:?}", a.lanes)));
+    }
+    let mut scene = file::load(&a.scene)?;
+    scene.render.seed = a.seed.unwrap_or(scene.render.seed);
+    scene.render.photons = a.photons.unwrap_or(scene.render.photons);
+    file::validate(&scene)?;
+    let opts = GradOptions {
+        estimator: a.estimator,
+        lanes: a.lanes,
+        pixels: a.pixels,
+        paths: a.paths,
+        directions: Directions::Gaussian,
+        seed: a.estimator_seed,
+    };
+    let listed = a.voxels.map(|v| parse_voxels(&v, scene.density.shape)).transpose()?;
+    let targets = read_targets(&a.target, &scene, "--target")?;
+    grad_cmd(&scene, &targets, &opts, listed.as_deref(), &a.out)
+}
+
+fn fit(a: FitArgs) -> Result<()> {
+    // Every option is checked before any work.
+    set_threads(a.threads)?;
+    a.method.check()?;
+    let scene = file::load(&a.scene)?;
+    let n_train = training_cameras(&scene, a.held_out)?;
+    let mut methods = Methods::default();
+    if let Some(path) = &a.study {
+        apply_study(&mut methods, &read_study(path)?)?;
+    }
+    // Both methods are checked: which one runs is known only once the prior is found.
+    for (name, m) in [("paper", &mut methods.paper), ("prior", &mut methods.prior)] {
+        a.method.apply(m);
+        m.check().map_err(|e| Error(format!("{name}.{}", e.0)))?;
+        file::check_photons(m.train.photons, scene.medium.max_order, "--photons")?;
+    }
+    let max_order = scene.medium.max_order;
+    let judge = FitQualitySettings::default();
+    let judge = FitQualitySettings { photons: a.judge_photons.unwrap_or(judge.photons), ..judge };
+    file::check_photons(judge.photons, max_order, "--judge-photons")?;
+    let all = read_targets(&a.images, &scene, "--images")?;
+    let (targets, held) = all.split_at(n_train);
+    let prior = choose_prior(a.prior.as_deref(), scene.density.shape)?;
+    let method = if prior.is_some() { methods.prior } else { methods.paper }.seeded(a.seed);
+
+    let mut settings = ReconstructSettings::new(method, scene.render.photons, scene.render.spp);
+    settings.prior = prior;
+    let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
+    let mut outputs = Outputs::create(&a.out).map_err(|e| Error(format!("--out: {e}")))?;
+    let r = reconstruct(&problem, &settings, &mut |p| {
+        outputs.log(p.row);
+        eprint!("\r{p}   ");
+    })?;
+    eprintln!();
+    outputs.finish(&r, &problem)?;
+    eprintln!("judging the fit against your images ({} photons, {} spp) ...", judge.photons, judge.spp);
+    let quality = fit_quality(&scene, &r.estimated, FitTarget::Images(&all), n_train, &judge)?;
+    write_rows(&a.out.join("fit_quality.csv"), &quality)?;
+    print!("{}", fit_quality_markdown(&quality));
+    eprintln!(
+        "fit: {} hull voxels, final loss {:.4e} -> {}",
+        r.model.mask.iter().filter(|&&m| m).count(),
+        r.log.last().map_or(0.0, |l| l.train_loss),
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn judge(a: JudgeArgs) -> Result<()> {
+    set_threads(a.threads)?;
+    if a.truth.is_none() && a.images.is_none() {
+        return Err(Error::new("judge: give --truth FILE (a density) or --images DIR (one image per camera)"));
+    }
+    if a.spp == 0 {
+        return Err(Error::new("--spp: must be at least 1"));
+    }
+    let scene = file::load(&a.scene)?;
+    file::check_photons(a.photons, scene.medium.max_order, "--photons")?;
+    let n_train = training_cameras(&scene, a.held_out)?;
+    let estimate = read_density(&a.estimate, &scene, "--estimate")?;
+    let settings = FitQualitySettings { photons: a.photons, spp: a.spp, ..Default::default() };
+    let rows = match (a.truth, a.images) {
+        (Some(t), _) => {
+            let truth = read_density(&t, &scene, "--truth")?;
+            fit_quality(&scene, &estimate, FitTarget::Truth(&truth), n_train, &settings)?
+        }
+        (None, Some(dir)) => {
+            let images = read_targets(&dir, &scene, "--images")?;
+            fit_quality(&scene, &estimate, FitTarget::Images(&images), n_train, &settings)?
+        }
+        (None, None) => unreachable!("checked above"),
+    };
+    print!("{}", fit_quality_markdown(&rows));
+    if let Some(out) = a.out {
+        write_rows(&out, &rows)?;
+    }
+    Ok(())
+}
+
+fn scene(a: SceneArgs) -> Result<()> {
+    let Preset::Paper = a.preset;
+    let res = a.res;
+    if res == 0 || res > 512 {
+        return Err(Error(format!("--res: {res} must be in 1..=512")));
+    }
+    let density = match a.from_scalarflow {
+        Some(path) => scalarflow::load_scalarflow(&path, res)?,
+        None => plume::plume(res, a.seed),
+    };
+    let scene: Scene = rig::paper_scene(density, res);
+    file::validate(&scene)?;
+    file::save(&scene, &a.out, "scene")?;
+    let s = plume::plume_stats(&scene.density);
+    eprintln!(
+        "wrote {}/scene.json and density.npy: {res}^3, {} occupied voxels ({:.1} %), mean {:.4} over them, max {:.4}",
+        a.out.display(),
+        s.occupied,
+        100.0 * s.fraction_occupied,
+        s.mean_occupied,
+        s.max
+    );
+    Ok(())
+}
+
+/// How many of `scene`'s cameras train when the last `held_out` are held
+/// out (`fit` and `judge`); errors if none would.
+fn training_cameras(scene: &Scene, held_out: usize) -> Result<usize> {
+    let n = scene.cameras.len();
+    if held_out >= n {
+        return Err(Error(format!("--held-out: {held_out} leaves no training camera of {n}")));
+    }
+    Ok(n - held_out)
 }
 
 /// The prior `fit` uses, announced on its first line: `none` (the
 /// per-scene decoder), a directory (errors if it cannot be used), or by
-/// default the committed prior when it decodes the scene's grid.
+/// default the project's prior ([`prior::DEFAULT_DIR`] beside the working
+/// directory, else in the source tree this was built from) when it decodes
+/// the scene's grid, else the per-scene decoder. A default prior found in
+/// neither place is an error, not a silent change of method.
 fn choose_prior(choice: Option<&str>, shape: [usize; 3]) -> Result<Option<Prior>> {
     let loaded = match choice {
         Some("none") => {
@@ -234,20 +425,22 @@ fn choose_prior(choice: Option<&str>, shape: [usize; 3]) -> Result<Option<Prior>
             p
         }
         None => {
-            // The committed prior: beside the working directory, else in the source tree this was built from.
             let here = PathBuf::from(prior::DEFAULT_DIR);
-            let dir = if here.join("prior.json").exists() {
-                here
-            } else {
-                Path::new(env!("CARGO_MANIFEST_DIR")).join(prior::DEFAULT_DIR)
+            let built = Path::new(env!("CARGO_MANIFEST_DIR")).join(prior::DEFAULT_DIR);
+            let Some(dir) = [here, built.clone()].into_iter().find(|d| d.join("prior.json").exists()) else {
+                return Err(Error(format!(
+                    "--prior: the default prior {} is in neither ./{} nor {}: pass --prior DIR or --prior none",
+                    prior::DEFAULT_DIR,
+                    prior::DEFAULT_DIR,
+                    built.display()
+                )));
             };
-            match Prior::load(&dir).and_then(|p| p.check_grid(shape).map(|()| p)) {
-                Ok(p) => p,
-                Err(e) => {
-                    eprintln!("fit: the paper's per-scene decoder, not the learned prior ({e})");
-                    return Ok(None);
-                }
+            let p = Prior::load(&dir)?;
+            if let Err(e) = p.check_grid(shape) {
+                eprintln!("fit: the paper's per-scene decoder, not the default prior ({e})");
+                return Ok(None);
             }
+            p
         }
     };
     eprintln!(
@@ -255,174 +448,6 @@ fn choose_prior(choice: Option<&str>, shape: [usize; 3]) -> Result<Option<Prior>
         loaded.dir.display()
     );
     Ok(Some(loaded))
-}
-
-fn main() -> ExitCode {
-    dualphoton::process::keep_freed_memory();
-    dualphoton::error::exit_code(run(Cli::parse().command))
-}
-
-fn run(command: Command) -> Result<()> {
-    match command {
-        Command::Render { scene, out, method, seed, threads, photons, radius, step, spp, path_spp, shadows, white } => {
-            set_threads(threads)?;
-            let mut scene = file::load(&scene)?;
-            let r = &mut scene.render;
-            r.seed = seed.unwrap_or(r.seed);
-            r.photons = photons.unwrap_or(r.photons);
-            r.kernel_radius = radius.or(r.kernel_radius);
-            r.step = step.or(r.step);
-            r.spp = spp.unwrap_or(r.spp);
-            r.path_spp = path_spp.unwrap_or(r.path_spp);
-            r.shadows = shadows.unwrap_or(r.shadows);
-            file::validate(&scene)?;
-            if let Some(w) = white {
-                if !(w.is_finite() && w > 0.0) {
-                    return Err(Error(format!("--white: {w} must be finite and > 0")));
-                }
-            }
-            match method {
-                Method::Photon => render_photon_cmd(&scene, &out, white),
-                Method::Path => render_path_cmd(&scene, &out, white),
-            }
-        }
-        Command::Grad {
-            scene,
-            target,
-            out,
-            estimator,
-            seed,
-            estimator_seed,
-            lanes,
-            pixels,
-            paths,
-            voxels,
-            threads,
-            photons,
-        } => {
-            set_threads(threads)?;
-            let mut scene = file::load(&scene)?;
-            scene.render.seed = seed.unwrap_or(scene.render.seed);
-            scene.render.photons = photons.unwrap_or(scene.render.photons);
-            file::validate(&scene)?;
-            let opts =
-                GradOptions { estimator, lanes, pixels, paths, directions: Directions::Gaussian, seed: estimator_seed };
-            if !LANES.contains(&lanes) {
-                return Err(Error(format!("--lanes: {lanes} is not one of {LANES:?}")));
-            }
-            let listed = voxels.map(|v| parse_voxels(&v, scene.density.shape)).transpose()?;
-            let targets = read_targets(&target, &scene)?;
-            grad_cmd(&scene, &targets, &opts, listed.as_deref(), &out)
-        }
-        Command::Fit {
-            scene,
-            images,
-            out,
-            held_out,
-            paper_fit,
-            mut renders,
-            judge_photons,
-            seed,
-            prior,
-            prior_fit,
-            threads,
-        } => {
-            set_threads(threads)?;
-            let scene = file::load(&scene)?;
-            let prior = choose_prior(prior.as_deref(), scene.density.shape)?;
-            file::check_photons(renders.photons, scene.medium.max_order, "--photons")?;
-            let all = read_targets(&images, &scene)?;
-            if held_out >= scene.cameras.len() {
-                return Err(Error(format!(
-                    "--held-out: {held_out} leaves no training camera of {}",
-                    scene.cameras.len()
-                )));
-            }
-            let (targets, held) = all.split_at(scene.cameras.len() - held_out);
-            renders.seed = seed;
-            let (fp, fs) = (scene.render.photons, scene.render.spp);
-            let settings = match prior {
-                Some(prior) => prior_method(prior, &prior_fit, renders, fp, fs),
-                None => paper_method(&paper_fit, renders, fp, fs)?,
-            };
-            let problem = Problem { scene: &scene, targets, held_out: held, truth: None };
-            let mut outputs = Outputs::create(&out).map_err(|e| Error(format!("--out: {e}")))?;
-            let r = reconstruct(&problem, &settings, &mut |p| {
-                outputs.log(p.row);
-                eprint!("\r{p}   ");
-            })?;
-            eprintln!();
-            outputs.finish(&r, &problem)?;
-            file::check_photons(judge_photons, scene.medium.max_order, "--judge-photons")?;
-            let judge = FitQualitySettings { photons: judge_photons, ..FitQualitySettings::default() };
-            eprintln!("judging the fit against your images ({} photons, {} spp) ...", judge.photons, judge.spp);
-            let fit = fit_quality(&scene, &r.estimated, FitTarget::Images(&all), targets.len(), &judge)?;
-            write_rows(&out.join("fit_quality.csv"), &fit)?;
-            eprint!("{}", fit_quality_markdown(&fit));
-            eprintln!(
-                "fit: {} hull voxels, final loss {:.4e} -> {}",
-                r.model.mask.iter().filter(|&&m| m).count(),
-                r.log.last().map_or(0.0, |l| l.train_loss),
-                out.display()
-            );
-            Ok(())
-        }
-        Command::Judge { scene, estimate, truth, images, held_out, photons, spp, out, threads } => {
-            set_threads(threads)?;
-            let scene = file::load(&scene)?;
-            file::check_photons(photons, scene.medium.max_order, "--photons")?;
-            if spp == 0 {
-                return Err(Error::new("--spp: must be at least 1"));
-            }
-            if held_out >= scene.cameras.len() {
-                return Err(Error(format!(
-                    "--held-out: {held_out} leaves no training camera of {}",
-                    scene.cameras.len()
-                )));
-            }
-            let estimate = read_density(&estimate, &scene, "--estimate")?;
-            let settings = FitQualitySettings { photons, spp, ..Default::default() };
-            let n_train = scene.cameras.len() - held_out;
-            let rows = match (truth, images) {
-                (Some(t), _) => {
-                    let truth = read_density(&t, &scene, "--truth")?;
-                    fit_quality(&scene, &estimate, FitTarget::Truth(&truth), n_train, &settings)?
-                }
-                (None, Some(dir)) => {
-                    let images = read_targets(&dir, &scene)?;
-                    fit_quality(&scene, &estimate, FitTarget::Images(&images), n_train, &settings)?
-                }
-                (None, None) => return Err(Error::new("judge: give --truth or --images")),
-            };
-            print!("{}", fit_quality_markdown(&rows));
-            if let Some(out) = out {
-                write_rows(&out, &rows)?;
-            }
-            Ok(())
-        }
-        Command::Scene { preset: Preset::Paper, res, seed, from_scalarflow, out } => {
-            if res == 0 || res > 512 {
-                return Err(Error(format!("--res: {res} must be in 1..=512")));
-            }
-            let density = match from_scalarflow {
-                Some(path) => scalarflow::load_scalarflow(&path, res)?,
-                None => plume::plume(res, seed),
-            };
-            let scene: Scene = rig::paper_scene(density, res);
-            file::validate(&scene)?;
-            file::save(&scene, &out, "scene")?;
-            let s = plume::plume_stats(&scene.density);
-            eprintln!(
-                "wrote {}/scene.json and density.npy: {res}^3, {} occupied voxels ({:.1} %), mean {:.4} over them, max {:.4}",
-                out.display(),
-                s.occupied,
-                100.0 * s.fraction_occupied,
-                s.mean_occupied,
-                s.max
-            );
-            Ok(())
-        }
-    }
 }
 
 /// Parses "k,j,i;k,j,i" into flat voxel indices of a grid of `shape`.
@@ -462,18 +487,19 @@ fn read_density(path: &Path, scene: &Scene, what: &str) -> Result<Grid<f64>> {
     Ok(grid)
 }
 
-/// The target images DIR/cam0.npy, ... one per camera, checked against the cameras' sizes.
-fn read_targets(dir: &Path, scene: &Scene) -> Result<Vec<Image>> {
+/// The target images DIR/cam0.npy, ... one per camera, checked against the
+/// cameras' sizes; errors name the option `what`.
+fn read_targets(dir: &Path, scene: &Scene, what: &str) -> Result<Vec<Image>> {
     scene
         .cameras
         .iter()
         .enumerate()
         .map(|(c, cam)| {
             let path = dir.join(format!("cam{c}.npy"));
-            let a = npy::read_f32_range(&path, "--target")?;
+            let a = npy::read_f32_range(&path, what)?;
             if a.shape != [cam.height, cam.width] {
                 return Err(Error(format!(
-                    "--target: {} has shape {:?}, camera {c} needs ({}, {})",
+                    "{what}: {} has shape {:?}, camera {c} needs ({}, {})",
                     path.display(),
                     a.shape,
                     cam.height,
@@ -481,7 +507,7 @@ fn read_targets(dir: &Path, scene: &Scene) -> Result<Vec<Image>> {
                 )));
             }
             if a.data.iter().any(|v| !v.is_finite()) {
-                return Err(Error(format!("--target: {} has NaN or Inf pixels", path.display())));
+                return Err(Error(format!("{what}: {} has NaN or Inf pixels", path.display())));
             }
             Ok(Image { width: cam.width, height: cam.height, data: a.data })
         })
@@ -525,10 +551,13 @@ fn grad_cmd(scene: &Scene, targets: &[Image], opts: &GradOptions, listed: Option
     Ok(())
 }
 
+/// Most worker threads `--threads` may ask for.
+const MAX_THREADS: usize = 1024;
+
 fn set_threads(threads: Option<usize>) -> Result<()> {
     if let Some(n) = threads {
-        if n == 0 {
-            return Err(Error::new("--threads: must be at least 1"));
+        if n == 0 || n > MAX_THREADS {
+            return Err(Error(format!("--threads: {n} must be in 1..={MAX_THREADS}")));
         }
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|e| Error(format!("--threads: {e}")))?;
     }

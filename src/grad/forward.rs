@@ -54,7 +54,8 @@ pub fn coordinate_gradient<const K: usize>(
 }
 
 /// How random directions are drawn for `fwd-rand`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Directions {
     /// Independent standard normal entries; `g = (1/K) Σ (∇L·v) v`.
     Gaussian,

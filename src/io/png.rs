@@ -1,6 +1,6 @@
 //! PNG previews of radiance images.
 //!
-//! Tone mapping (stated in the README): `v = (L / white)^(1/2.2)` clipped to
+//! Tone mapping (stated in docs/usage.md): `v = (L / white)^(1/2.2)` clipped to
 //! [0, 1] and stored as 8-bit grey, where `white` is the 99.5th percentile of
 //! the image's non-zero radiance unless the caller fixes it (so that several
 //! images can share one exposure).

@@ -6,11 +6,11 @@
 //! Random draws come from the caller's [`Rng`], always in the same order:
 //! `rev-sub` draws one subset seed; `fwd-rand` draws the latent's directions,
 //! then the weights'; `guided` draws its `k - 1` Gaussian directions in
-//! blocks of 16. `fwd-full`'s latent and coordinate mode draw nothing.
+//! blocks of 16. `fwd-full`'s latent draws nothing.
 
 use super::level::Level;
 use super::param_grad;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::grad::forward::Directions;
 use crate::grad::reverse::Subset;
 pub use crate::grad::Estimator;
@@ -24,8 +24,6 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum WeightDirections {
-    /// Exact partial derivatives of a block of weights, cycling through all of them.
-    Coordinates,
     /// Random orthonormal directions; the step uses the projection of the
     /// gradient onto their span (scaled to be unbiased: `n/K Σ (g·q) q`).
     Orthonormal,
@@ -36,7 +34,7 @@ pub enum WeightDirections {
 }
 
 /// How one gradient of the parameters is estimated.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EstimatorSettings {
     /// Which estimator.
     pub estimator: Estimator,
@@ -71,6 +69,29 @@ impl Default for EstimatorSettings {
             subset_pixels: 1000,
             subset_paths: 5000,
         }
+    }
+}
+
+/// Most forward-mode directions for the decoder weights per update (far
+/// above any useful value: each costs a dual lane of every render).
+pub const MAX_WEIGHT_DIRECTIONS: usize = 1024;
+
+impl EstimatorSettings {
+    /// Errors (naming the field) on settings that cannot run.
+    pub fn check(&self) -> Result<()> {
+        if !crate::grad::LANES.contains(&self.lanes) {
+            return Err(Error(format!("train.gradient.lanes: {} is not one of {:?}", self.lanes, crate::grad::LANES)));
+        }
+        if self.weight_directions > MAX_WEIGHT_DIRECTIONS {
+            return Err(Error(format!(
+                "train.gradient.weight_directions: {} must be at most {MAX_WEIGHT_DIRECTIONS}",
+                self.weight_directions
+            )));
+        }
+        if self.subset_pixels == 0 || self.subset_paths == 0 {
+            return Err(Error::new("train.gradient.subset_pixels and subset_paths: must be at least 1"));
+        }
+        Ok(())
     }
 }
 
@@ -120,15 +141,13 @@ const WIDE_LANES_UP_TO: usize = 64 * 64 * 64;
 pub const LANES_ABOVE_64_CUBED: usize = 32;
 
 /// The gradient of `level`'s image loss with respect to `model`'s latent
-/// and weights on the frozen estimator, by `settings`. `update` is the
-/// training update's number (coordinate mode takes the weights from
-/// `update * weight_directions` on); `rng` supplies every random draw.
+/// and weights on the frozen estimator, by `settings`; `rng` supplies every
+/// random draw.
 pub fn parameter_gradient(
     level: &Level,
     model: &Model,
     frozen: &Frozen,
     settings: &EstimatorSettings,
-    update: usize,
     rng: &mut Rng,
 ) -> Result<ParamGradient> {
     let s = settings;
@@ -158,12 +177,6 @@ pub fn parameter_gradient(
             };
             let mut weights_pass = || match (k, s.weight_mode) {
                 (0, _) => Ok(Entries::default()),
-                (_, WeightDirections::Coordinates) => {
-                    let n = model.w.len();
-                    let first = update * k.min(n) % n.max(1);
-                    param_grad::weights_coordinates(level, model, frozen, k, lanes, first)
-                        .map(|(indices, values)| Entries { indices, values })
-                }
                 (_, WeightDirections::Orthonormal) => {
                     dense(param_grad::weights_random(level, model, frozen, k, Directions::Orthonormal, lanes, rng))
                 }
@@ -201,31 +214,31 @@ mod tests {
     use crate::recon::param_grad::tests::tiny;
 
     #[test]
-    fn exact_forward_and_reverse_agree_and_coordinates_cycle() {
+    fn exact_forward_and_reverse_agree_and_the_latent_can_be_left_out() {
         let (level, model, scene) = tiny();
         let frozen = Frozen::new(&scene, Some(&level.support));
         let mut rng = Rng::from_seed(0);
         let rev = EstimatorSettings { estimator: Estimator::RevFull, ..EstimatorSettings::default() };
-        let exact = parameter_gradient(&level, &model, &frozen, &rev, 0, &mut rng).unwrap();
-        let coords = EstimatorSettings {
-            lanes: 4,
-            weight_directions: 4,
-            weight_mode: WeightDirections::Coordinates,
-            ..EstimatorSettings::default()
-        };
-        let fwd = parameter_gradient(&level, &model, &frozen, &coords, 3, &mut rng).unwrap();
-        // Update 3 differentiates weights 12..16; both parts match reverse mode up to rounding.
-        assert_eq!(fwd.weights.indices, vec![12, 13, 14, 15]);
-        let close = |a: &[f64], b: &[f64]| {
-            let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-8 * scale)
-        };
-        assert!(close(&fwd.latent.values, &exact.latent.values));
-        assert!(close(&fwd.weights.values, &exact.weights.values[12..16]));
+        let exact = parameter_gradient(&level, &model, &frozen, &rev, &mut rng).unwrap();
+        let fwd = EstimatorSettings { lanes: 4, weight_directions: 4, ..EstimatorSettings::default() };
+        let g = parameter_gradient(&level, &model, &frozen, &fwd, &mut rng).unwrap();
+        // The latent's forward gradient is exact: it matches reverse mode up to rounding.
+        let scale = exact.latent.values.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(scale > 0.0);
+        assert!(g.latent.values.iter().zip(&exact.latent.values).all(|(x, y)| (x - y).abs() <= 1e-8 * scale));
+        assert_eq!(g.weights.values.len(), model.w.len());
         // Leaving the latent out leaves it empty.
-        let weights_only = EstimatorSettings { latent: false, ..coords };
-        let g = parameter_gradient(&level, &model, &frozen, &weights_only, 0, &mut rng).unwrap();
+        let weights_only = EstimatorSettings { latent: false, ..fwd };
+        let g = parameter_gradient(&level, &model, &frozen, &weights_only, &mut rng).unwrap();
         assert!(g.latent.indices.is_empty() && g.latent.to_dense(64).is_none());
-        assert_eq!(g.weights.indices, vec![0, 1, 2, 3]);
+        assert_eq!(g.weights.values.len(), model.w.len());
+    }
+
+    #[test]
+    fn bad_settings_are_named() {
+        let e = EstimatorSettings { lanes: 3, ..EstimatorSettings::default() }.check().unwrap_err().to_string();
+        assert!(e.contains("lanes"), "{e}");
+        let huge = EstimatorSettings { weight_directions: 1_000_000, ..EstimatorSettings::default() };
+        assert!(huge.check().unwrap_err().to_string().contains("weight_directions"));
     }
 }

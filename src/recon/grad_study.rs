@@ -70,7 +70,7 @@ pub fn sample_estimators(
     for r in 0..reference_seeds {
         let s = level.scene_at(&decoded, render.photons * f as u64, render.spp * f, 1_000_000 + seed * 1000 + r as u64);
         let frozen = Frozen::new(&s, Some(&level.support));
-        refs.push(&parameter_gradient(level, model, &frozen, &rev_full, 0, &mut Rng::from_seed(0))?, model);
+        refs.push(&parameter_gradient(level, model, &frozen, &rev_full, &mut Rng::from_seed(0))?, model);
         progress(&format!("reference {}/{reference_seeds}", r + 1));
     }
 
@@ -86,7 +86,7 @@ pub fn sample_estimators(
             let mut rng = Rng::new(seed, Purpose::Gradient, 7_000 + i as u64);
             reset_peak_memory();
             let t = Instant::now();
-            let g = parameter_gradient(level, model, &frozen, setting, 0, &mut rng)?;
+            let g = parameter_gradient(level, model, &frozen, setting, &mut rng)?;
             smp.seconds.push(t.elapsed().as_secs_f64());
             smp.peak_mib = smp.peak_mib.max(peak_memory_mib());
             smp.push(&g, model);

@@ -17,7 +17,7 @@ pub const SILHOUETTE_DILATION: usize = 1;
 
 /// How the hull is carved: the silhouette threshold (a fraction of each
 /// image's 99.5th-percentile radiance) and dilation (pixels).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HullSettings {
     /// Silhouette threshold.
     pub threshold: f64,

@@ -2,8 +2,11 @@
 //! images, the paper's setup and numbers), the visual hull, the resolution
 //! levels of coarse-to-fine training, the gradients of the loss with respect
 //! to the model's parameters and the one estimator vocabulary that chooses
-//! among them, many-seed samples of those estimators for studying them, Adam, the training loop, its progress and ETA, a whole
-//! reconstruction and the files it is written to.
+//! among them, many-seed samples of those estimators for studying them,
+//! the training loop and the refinement, the two methods with their shipped
+//! defaults ([`methods`]) and the study files that change any setting
+//! ([`study`]), progress and ETA, a whole reconstruction and the files it
+//! is written to.
 
 pub mod estimator;
 pub mod grad_study;
@@ -17,4 +20,5 @@ pub mod problem;
 pub mod progress;
 pub mod reconstruct;
 pub mod refine;
+pub mod study;
 pub mod train;

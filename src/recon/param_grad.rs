@@ -79,30 +79,6 @@ pub fn latent_random(
     Ok(crate::with_lanes!(k, pass(level, model, frozen, kind, rng)))
 }
 
-/// Exact partial derivatives of `k` consecutive weights starting at
-/// `first` (wrapping around): (indices, derivatives).
-pub fn weights_coordinates(
-    level: &Level,
-    model: &Model,
-    frozen: &Frozen,
-    k: usize,
-    lanes: usize,
-    first: usize,
-) -> Result<(Vec<usize>, Vec<f64>)> {
-    let n = model.w.len();
-    let idx: Vec<usize> = (0..k.min(n)).map(|j| (first + j) % n).collect();
-    let dirs: Vec<Vec<f64>> = idx
-        .iter()
-        .map(|&i| {
-            let mut e = vec![0.0; n];
-            e[i] = 1.0;
-            e
-        })
-        .collect();
-    let d = weight_derivatives(level, model, frozen, &dirs, lanes)?;
-    Ok((idx, d))
-}
-
 /// A random-direction estimate of `dL/dw` from `k` directions (any k),
 /// unbiased for both kinds; `lanes` directions per forward pass.
 pub fn weights_random(

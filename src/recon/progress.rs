@@ -18,8 +18,8 @@ use std::time::Instant;
 pub struct Progress<'a> {
     /// The row just measured (before its update).
     pub row: &'a LogRow,
-    /// Updates in all.
-    pub total: usize,
+    /// Which part of the reconstruction the row belongs to.
+    pub part: Part,
     /// Seconds since the reconstruction started (hull and model included).
     pub elapsed_s: f64,
     /// Predicted seconds of training left (this update and the later ones);
@@ -27,12 +27,36 @@ pub struct Progress<'a> {
     pub eta_s: Option<f64>,
 }
 
+/// The part of a reconstruction a log row belongs to, with its own count.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Part {
+    /// Training, of `total` updates.
+    Training {
+        /// Training updates asked for.
+        total: usize,
+    },
+    /// The refinement, of `total` updates, numbered in the log from `first`.
+    Refinement {
+        /// The log's number of the first refinement update (the training updates made).
+        first: usize,
+        /// Refinement updates asked for.
+        total: usize,
+    },
+}
+
 impl fmt::Display for Progress<'_> {
-    /// `iteration 12/250  loss ..  held-out ..  eps ..  30 s, ETA 160 s`; the
-    /// held-out loss and the density error only where they are known.
+    /// `training 12/250  loss ..  held-out ..  eps ..  30 s, ETA 160 s`
+    /// (`refinement 3/400 ...` after training); the held-out loss and the
+    /// density error only where they are known.
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
         let r = self.row;
-        write!(f, "iteration {}/{}  loss {:.4e}", r.iteration + 1, self.total, r.train_loss)?;
+        match self.part {
+            Part::Training { total } => write!(f, "training {}/{total}", r.iteration + 1)?,
+            Part::Refinement { first, total } => {
+                write!(f, "refinement {}/{total}", r.iteration + 1 - first.min(r.iteration))?
+            }
+        }
+        write!(f, "  loss {:.4e}", r.train_loss)?;
         if r.held_out_loss != 0.0 {
             write!(f, "  held-out {:.4e}", r.held_out_loss)?;
         }

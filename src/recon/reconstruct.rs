@@ -4,11 +4,12 @@
 //! estimate. It computes and returns; [`super::outputs`] writes the files.
 
 use super::level::Level;
+use super::methods::Method;
 use super::paper;
 use super::problem::Problem;
-use super::progress::{fine_over_coarse, Eta, Phase, Progress};
+use super::progress::{fine_over_coarse, Eta, Part, Phase, Progress};
 use super::refine::{refine, RefineSettings};
-use super::train::{coarse_updates, train, LogRow, TrainSettings};
+use super::train::{check_finite, coarse_updates, train, LogRow, TrainSettings};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::model::Decoder;
@@ -44,18 +45,16 @@ pub struct Reconstruction {
 /// Settings of a reconstruction beyond training.
 #[derive(Clone, Debug)]
 pub struct ReconstructSettings {
-    /// Training.
+    /// Training; its seed also seeds the model's initial values
+    /// ([`ReconstructSettings::init_seed`]) and the final renders
+    /// ([`ReconstructSettings::final_seed`]).
     pub train: TrainSettings,
-    /// The per-voxel refinement after training (none by default).
+    /// The per-voxel refinement after training (`updates` 0: none).
     pub refine: RefineSettings,
     /// Photons of the final renders.
     pub final_photons: u64,
     /// Samples per pixel of the final renders.
     pub final_spp: u32,
-    /// Seed of the final renders.
-    pub final_seed: u64,
-    /// Seed of the model's initial values.
-    pub init_seed: u64,
     /// Camera whose image is kept at the snapshot iterations (none if out of range).
     pub snapshot_camera: usize,
     /// Iterations whose image of the snapshot camera is kept (the last one is added).
@@ -64,28 +63,36 @@ pub struct ReconstructSettings {
     pub hull: HullSettings,
     /// A learned prior: its decoder and weights replace the per-scene
     /// decoder and the latent starts at the prior's mean (none: the paper's
-    /// per-scene decoder, initialised from `init_seed`).
+    /// per-scene decoder, initialised from [`ReconstructSettings::init_seed`]).
     pub prior: Option<Prior>,
 }
 
 impl ReconstructSettings {
-    /// The paper's choices around `train`: the model initialised from the
-    /// training seed, snapshots for Fig. 6 ([`paper::FIG6_CAMERA`] at
+    /// `method` (seeded, [`Method::seeded`]) with the paper's choices around
+    /// it: snapshots for Fig. 6 ([`paper::FIG6_CAMERA`] at
     /// [`paper::FIG6_ITERATIONS`]) and final renders with `final_photons`,
-    /// `final_spp` and [`paper::final_seed`].
-    pub fn paper(train: TrainSettings, final_photons: u64, final_spp: u32) -> ReconstructSettings {
+    /// `final_spp` and [`paper::final_seed`]; no prior.
+    pub fn new(method: Method, final_photons: u64, final_spp: u32) -> ReconstructSettings {
         ReconstructSettings {
             final_photons,
             final_spp,
-            final_seed: paper::final_seed(train.seed),
-            init_seed: train.seed,
             snapshot_camera: paper::FIG6_CAMERA,
             snapshot_iterations: paper::FIG6_ITERATIONS.to_vec(),
-            refine: RefineSettings { seed: train.seed, ..RefineSettings::default() },
-            train,
+            train: method.train,
+            refine: method.refine,
             hull: HullSettings::default(),
             prior: None,
         }
+    }
+
+    /// Seed of the model's initial values: training's.
+    pub fn init_seed(&self) -> u64 {
+        self.train.seed
+    }
+
+    /// Seed of the final renders, derived from training's.
+    pub fn final_seed(&self) -> u64 {
+        paper::final_seed(self.train.seed)
     }
 }
 
@@ -148,12 +155,14 @@ pub fn reconstruct(
     let (scene, targets) = (problem.scene, problem.targets);
     let mut model = match &settings.prior {
         Some(prior) => prior_model(scene, targets, prior, settings.hull)?,
-        None => initial_model_in(scene, targets, settings.init_seed, settings.hull)?,
+        None => initial_model_in(scene, targets, settings.init_seed(), settings.hull)?,
     };
     let initial = model.density(&scene.density);
 
+    settings.train.check()?;
+    settings.refine.check()?;
     let train_settings = &settings.train;
-    let total = train_settings.iterations.saturating_add(settings.refine.updates);
+    let (iterations, updates) = (train_settings.iterations, settings.refine.updates);
     let mut eta = eta_for(problem, &model, train_settings, &settings.refine);
     let mut log = vec![];
     let mut snapshots = vec![];
@@ -168,7 +177,8 @@ pub fn reconstruct(
         if let (true, Some(image), Some(width)) = (wanted, images.get(camera), truth_width) {
             snapshots.push((row.iteration, upscale(image, width)));
         }
-        progress(&Progress { row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
+        let part = Part::Training { total: iterations };
+        progress(&Progress { row, part, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
         log.push(row.clone());
     })?;
     let train_s = train_started.elapsed().as_secs_f64();
@@ -178,17 +188,20 @@ pub fn reconstruct(
         refine(problem, &model, &settings.refine, trained, &mut |row| {
             let row = LogRow { wall_s: row.wall_s + train_s, ..row.clone() };
             let eta_s = eta.observe(row.iteration, row.wall_s, Phase::Refine);
-            progress(&Progress { row: &row, total, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
+            let part = Part::Refinement { first: trained, total: updates };
+            progress(&Progress { row: &row, part, elapsed_s: start.elapsed().as_secs_f64(), eta_s });
             log.push(row);
         })?
     } else {
-        model.density(&scene.density)
+        let d = model.density(&scene.density);
+        check_finite(&d, "training", trained.saturating_sub(1))?;
+        d
     };
     let mut final_scene = scene.clone();
     final_scene.density = estimated.clone();
     final_scene.render.photons = settings.final_photons;
     final_scene.render.spp = settings.final_spp;
-    final_scene.render.seed = settings.final_seed;
+    final_scene.render.seed = settings.final_seed();
     let final_images = render_photon(&final_scene).images;
     Ok(Reconstruction { model, initial, estimated, log, trained, final_images, snapshot_camera: camera, snapshots })
 }

@@ -3,9 +3,8 @@
 //! `exp(g + s)`, and plus a non-negative term `a` of its own), and Adam
 //! fits them to the training images by reverse mode (the renderer's exact
 //! `dL/d density`; no decoder in between, so nothing limits how closely
-//! the images can be explained), with a penalty `penalty * mean(s^2)` that
-//! keeps the density near the decoder's. Without the additive term, voxels
-//! where the decoder gives 0 stay 0.
+//! the images can be explained). Without the additive term, voxels where
+//! the decoder gives 0 stay 0.
 //!
 //! It exists because the decoder, trained through a noisy renderer, fits
 //! its own training images only slowly; the refinement closes the rest of
@@ -13,7 +12,7 @@
 
 use super::level::Level;
 use super::problem::Problem;
-use super::train::{log_row, LogRow};
+use super::train::{check_finite, check_renders, log_row, LogRow};
 use crate::error::{Error, Result};
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::model::Model;
@@ -21,17 +20,17 @@ use crate::optim::Adam;
 use crate::par;
 use crate::volume::Grid;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-/// How the refinement runs.
-#[derive(Clone, Debug, PartialEq)]
+/// How the refinement runs. `Default` is the paper's method as this
+/// project ships it, [`RefineSettings::prior`] the learned prior's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RefineSettings {
     /// Adam updates (0: no refinement).
     pub updates: usize,
     /// Adam step of the log-factors.
     pub lr: f64,
-    /// Weight of `mean(s^2)` over the hull voxels, added to the image loss.
-    pub penalty: f64,
     /// Photons per update.
     pub photons: u64,
     /// Camera samples per pixel per update.
@@ -53,24 +52,15 @@ pub struct RefineSettings {
     /// a decoder's ReLU output is exactly 0 in whole regions of the hull,
     /// which a factor cannot fill.
     pub additive: bool,
-    /// Return the mean of the densities after the last `average` fraction
-    /// of the updates instead of the last one (0: the last): every update
-    /// follows a noisy render, and the mean of the last iterates carries
-    /// less of that noise than any one of them. If a time budget stops the
-    /// updates before the window opens, the last iterate.
-    pub average: f64,
     /// The steps of every factor and term fall exponentially over the
     /// updates (or the time budget, if that ends the refinement first) to
     /// this fraction of their start (1: constant). Adam moves a coordinate
     /// whose gradient is only noise by a random walk of about its step per
     /// update. Alone, smaller late steps did not lessen the haze in empty
-    /// voxels (`docs/fitting.md`, "Not the refinement's noise"); with block
-    /// terms, whose steps move many voxels at once, they are what keeps the
-    /// last iterate's images close (the paper's method's default, 0.1).
+    /// voxels; with block terms, whose steps move many voxels at once,
+    /// they are what keeps the last iterate's images close (the paper's
+    /// method's default, 0.1).
     pub lr_final: f64,
-    /// The additive terms' step, as a multiple of `lr` times the mean
-    /// non-zero decoded density.
-    pub additive_lr: f64,
     /// Also fit one log-factor (and, with `additive`, one additive term)
     /// per block of `b`^3 voxels for every edge `b` here (empty: none). A
     /// block's gradient sums its voxels', so it follows the images' coarse
@@ -79,23 +69,48 @@ pub struct RefineSettings {
 }
 
 impl Default for RefineSettings {
+    /// The paper's method: 400 updates with the global factor, the
+    /// additive terms and blocks of 4 and 8, steps falling to 0.1.
     fn default() -> Self {
         RefineSettings {
-            updates: 0,
+            updates: 400,
             lr: 0.02,
-            penalty: 0.0,
             photons: 50_000,
             spp: 2,
-            decorrelate: false,
+            decorrelate: true,
             seed: 0,
             time_budget: None,
-            global: false,
-            additive: false,
-            average: 0.0,
-            lr_final: 1.0,
-            additive_lr: 1.0,
-            blocks: vec![],
+            global: true,
+            additive: true,
+            lr_final: 0.1,
+            blocks: vec![4, 8],
         }
+    }
+}
+
+impl RefineSettings {
+    /// The learned prior's: 200 updates (a fit within 3 minutes on 2
+    /// cores), constant steps, the same terms and blocks.
+    pub fn prior() -> Self {
+        RefineSettings { updates: 200, lr_final: 1.0, ..RefineSettings::default() }
+    }
+
+    /// Errors (naming the field) on settings that cannot run; [`refine`]
+    /// checks them before its first update.
+    pub fn check(&self) -> Result<()> {
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return Err(Error(format!("refine.lr: {} must be finite and > 0", self.lr)));
+        }
+        if !(self.lr_final.is_finite() && self.lr_final > 0.0 && self.lr_final <= 1.0) {
+            return Err(Error(format!("refine.lr_final: {} must be in (0, 1]", self.lr_final)));
+        }
+        if let Some(b) = self.time_budget.filter(|b| !(b.is_finite() && *b > 0.0)) {
+            return Err(Error(format!("refine.time_budget: {b} must be finite and > 0")));
+        }
+        if self.blocks.iter().any(|&b| b < 2) {
+            return Err(Error(format!("refine.blocks: edges {:?} must be at least 2 voxels", self.blocks)));
+        }
+        check_renders("refine", self.photons, self.spp)
     }
 }
 
@@ -122,22 +137,7 @@ pub fn refine_density(
     first: usize,
     observe: &mut dyn FnMut(&LogRow),
 ) -> Result<Grid<f64>> {
-    if !(settings.lr.is_finite() && settings.lr > 0.0 && settings.penalty.is_finite() && settings.penalty >= 0.0) {
-        return Err(Error(format!("refine: lr {} must be > 0 and penalty {} >= 0", settings.lr, settings.penalty)));
-    }
-    if !(settings.lr_final.is_finite()
-        && settings.lr_final > 0.0
-        && settings.additive_lr.is_finite()
-        && settings.additive_lr > 0.0)
-    {
-        return Err(Error(format!(
-            "refine: lr_final {} and additive_lr {} must be finite and > 0",
-            settings.lr_final, settings.additive_lr
-        )));
-    }
-    if !(0.0..=1.0).contains(&settings.average) {
-        return Err(Error(format!("refine: the averaged fraction {} must be within [0, 1]", settings.average)));
-    }
+    settings.check()?;
     if base.shape != problem.scene.density.shape || mask.len() != base.data.len() {
         return Err(Error(format!(
             "refine: start grid {:?} and mask of {} voxels must match the scene's grid {:?}",
@@ -146,16 +146,13 @@ pub fn refine_density(
             problem.scene.density.shape
         )));
     }
-    if settings.blocks.iter().any(|&b| b < 2) {
-        return Err(Error(format!("refine: block edges {:?} must be at least 2 voxels", settings.blocks)));
-    }
     let start = Instant::now();
     let level = Level::full(problem, mask);
     let hull: Vec<usize> =
         (0..base.data.len()).filter(|&i| mask[i] && (settings.additive || base.data[i] > 0.0)).collect();
     let nonzero: Vec<f64> = hull.iter().map(|&i| base.data[i]).filter(|&v| v > 0.0).collect();
     let mean_nonzero = nonzero.iter().sum::<f64>() / nonzero.len().max(1) as f64;
-    let lr_a = settings.lr * settings.additive_lr * mean_nonzero;
+    let lr_a = settings.lr * mean_nonzero;
     // Field 0 is the voxels' own terms, then one field per block edge.
     let mut fields = vec![Field::new((0..hull.len()).collect(), settings.lr, lr_a)];
     fields.extend(settings.blocks.iter().map(|&b| Field::new(block_of(base.shape, &hull, b), settings.lr, lr_a)));
@@ -179,8 +176,6 @@ pub fn refine_density(
             .collect();
         (Grid::new(base.lo, base.hi, base.shape, data), additive)
     };
-    let window = (settings.average * settings.updates as f64).round() as usize;
-    let (mut sum, mut summed) = (vec![0.0; base.data.len()], 0usize);
     for u in 0..settings.updates {
         if settings.time_budget.is_some_and(|b| start.elapsed().as_secs_f64() >= b) {
             break;
@@ -192,6 +187,7 @@ pub fn refine_density(
         adam_g.lr = settings.lr * decay;
         fields.iter_mut().for_each(|f| (f.adam_s.lr, f.adam_a.lr) = (settings.lr * decay, lr_a * decay));
         let (density, additive) = density_of(&fields, g[0]);
+        check_finite(&density, "refinement", u)?;
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add((first + u) as u64) ^ REFINE_SEED;
         let scene = level.scene_at(&density, settings.photons, settings.spp, seed);
         let (frozen, shifted) = level.freeze(&scene, &density, settings.decorrelate.then_some(seed ^ 1));
@@ -204,7 +200,6 @@ pub fn refine_density(
         );
         observe(&row);
         let grad = reverse.grad;
-        let n = hull.len().max(1) as f64;
         // d density / d (any log-factor) = the multiplicative part, density - additive.
         let image_part: Vec<f64> =
             hull.iter().zip(&additive).map(|(&i, add)| grad[i] * (density.data[i] - add)).collect();
@@ -212,28 +207,18 @@ pub fn refine_density(
         if settings.global {
             adam_g.step(&mut g, &[image_part.iter().sum::<f64>()]);
         }
-        for (index, f) in fields.iter_mut().enumerate() {
+        for f in fields.iter_mut() {
             if settings.additive {
                 let ga = f.sum_over(&voxel_grad);
                 f.adam_a.step(&mut f.a, &ga);
                 f.a.iter_mut().for_each(|a| *a = a.max(0.0));
             }
-            let mut gs = f.sum_over(&image_part);
-            if index == 0 {
-                // The penalty holds the voxels' own factors near the decoder's density.
-                gs.iter_mut().zip(&f.s).for_each(|(gi, si)| *gi += 2.0 * settings.penalty * si / n);
-            }
+            let gs = f.sum_over(&image_part);
             f.adam_s.step(&mut f.s, &gs);
         }
-        if u + window >= settings.updates {
-            sum.iter_mut().zip(&density_of(&fields, g[0]).0.data).for_each(|(t, d)| *t += d);
-            summed += 1;
-        }
     }
-    let mut last = density_of(&fields, g[0]).0;
-    if summed > 0 {
-        last.data.iter_mut().zip(&sum).for_each(|(d, t)| *d = t / summed as f64);
-    }
+    let last = density_of(&fields, g[0]).0;
+    check_finite(&last, "refinement", settings.updates.saturating_sub(1))?;
     Ok(last)
 }
 

@@ -14,7 +14,7 @@
 //!   approximate learning for `rev-sub`), then the decoder's own
 //!   vector-Jacobian product: exact (or unbiased) for latent and weights.
 
-use super::estimator::{parameter_gradient, Entries, EstimatorSettings};
+use super::estimator::{parameter_gradient, EstimatorSettings};
 use super::level::Level;
 use super::problem::Problem;
 use crate::error::{Error, Result};
@@ -27,10 +27,12 @@ use crate::par;
 use crate::render::frozen::Frozen;
 use crate::rng::{Purpose, Rng};
 use crate::volume::Grid;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-/// Everything a training run is set up with.
-#[derive(Clone, Debug)]
+/// Everything a training run is set up with. `Default` is the paper's
+/// method as this project ships it, [`TrainSettings::prior`] the learned prior's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrainSettings {
     /// Adam updates.
     pub iterations: usize,
@@ -52,10 +54,6 @@ pub struct TrainSettings {
     /// Stop once this many seconds have passed (at most `iterations`
     /// updates); `coarse_fraction` then applies to the time, not the updates.
     pub time_budget: Option<f64>,
-    /// Learning rates fall exponentially over the full-resolution updates
-    /// to this fraction of their starting values (1: constant), so that the
-    /// last updates average the render noise instead of following it.
-    pub lr_final: f64,
     /// Take each update's image residual from a second, independent render
     /// (another seed) rather than from the render differentiated. The
     /// squared loss of a noisy render is biased,
@@ -63,23 +61,17 @@ pub struct TrainSettings {
     /// independent residual and derivative the gradient is that of `(E[I] - T)^2`.
     /// Costs one more primal render per update.
     pub decorrelate: bool,
-    /// Weight of a sparsity prior `sparsity * mean density over the hull`
-    /// added to the image loss (0: none, the paper's loss). Its gradient is
-    /// exact for every estimator (the decoder's vector-Jacobian product).
-    pub sparsity: f64,
     /// Weight of a Gaussian penalty on the latent, `latent_penalty * s *
     /// mean_k z_k^2` with `s` the mean square of the training target pixels
     /// (so the weight is relative to the image loss): the prior of a
     /// learned decoder, whose latents are whitened (0: none).
     pub latent_penalty: f64,
-    /// Weight of a penalty keeping the decoder weights near their values at
-    /// the start of training, `weight_penalty * s * mean_i (w_i - w0_i)^2`
-    /// (`s` as for `latent_penalty`): fine-tuning a learned prior's decoder
-    /// without leaving the prior (0: none).
-    pub weight_penalty: f64,
 }
 
 impl Default for TrainSettings {
+    /// The paper's method: latent and weights (8 guided directions, the
+    /// latent exact by `fwd-full`), 80 % of 250 updates at half resolution,
+    /// decorrelated residuals.
     fn default() -> Self {
         TrainSettings {
             iterations: 250,
@@ -91,13 +83,81 @@ impl Default for TrainSettings {
             seed: 0,
             coarse_fraction: 0.8,
             time_budget: None,
-            lr_final: 1.0,
-            decorrelate: false,
-            sparsity: 0.0,
+            decorrelate: true,
             latent_penalty: 0.0,
-            weight_penalty: 0.0,
         }
     }
+}
+
+impl TrainSettings {
+    /// The learned prior's fit: 60 updates of its latent alone (exact,
+    /// `fwd-full`; the weights fixed), half of them at half resolution,
+    /// under a latent penalty of 1e-3.
+    pub fn prior() -> Self {
+        TrainSettings {
+            iterations: 60,
+            gradient: EstimatorSettings { weight_directions: 0, ..EstimatorSettings::default() },
+            lr_latent: 0.1,
+            lr_weights: 0.0,
+            coarse_fraction: 0.5,
+            latent_penalty: 1e-3,
+            ..TrainSettings::default()
+        }
+    }
+
+    /// Errors (naming the field) on settings that cannot run; [`train`]
+    /// checks them before its first update.
+    pub fn check(&self) -> Result<()> {
+        self.gradient.check()?;
+        let positive = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(Error(format!("{name}: {v} must be finite and > 0")))
+            }
+        };
+        positive("train.lr_latent", self.lr_latent)?;
+        if !(self.lr_weights.is_finite() && self.lr_weights >= 0.0) {
+            return Err(Error(format!("train.lr_weights: {} must be finite and >= 0", self.lr_weights)));
+        }
+        if !(self.latent_penalty.is_finite() && self.latent_penalty >= 0.0) {
+            return Err(Error(format!("train.latent_penalty: {} must be finite and >= 0", self.latent_penalty)));
+        }
+        if !(0.0..=1.0).contains(&self.coarse_fraction) {
+            return Err(Error(format!("train.coarse_fraction: {} must be in 0..=1", self.coarse_fraction)));
+        }
+        if let Some(b) = self.time_budget {
+            positive("train.time_budget", b)?;
+        }
+        check_renders("train", self.photons, self.spp)
+    }
+}
+
+/// Errors unless `photons` and `spp` (of `part`'s updates) are at least 1 and `spp` at most [`MAX_SPP`].
+pub(super) fn check_renders(part: &str, photons: u64, spp: u32) -> Result<()> {
+    if photons == 0 {
+        return Err(Error(format!("{part}.photons: must be at least 1")));
+    }
+    if spp == 0 || spp > MAX_SPP {
+        return Err(Error(format!("{part}.spp: {spp} must be in 1..={MAX_SPP}")));
+    }
+    Ok(())
+}
+
+/// Most camera samples per pixel an update may take (far above any useful value).
+pub const MAX_SPP: u32 = 4096;
+
+/// Errors if `density` is no longer finite as the float32 its file holds
+/// (a step too large sent the fit off): `what` and the update name where
+/// it happened.
+pub(super) fn check_finite(density: &Grid<f64>, what: &str, update: usize) -> Result<()> {
+    if density.data.iter().all(|v| v.abs() <= f32::MAX as f64) {
+        return Ok(());
+    }
+    Err(Error(format!(
+        "{what}: the density is no longer finite (in float32) at update {} (a learning rate too large?)",
+        update + 1
+    )))
 }
 
 /// How many of the first updates [`train`] makes at half
@@ -142,15 +202,7 @@ pub fn train(
     settings: &TrainSettings,
     observe: &mut dyn FnMut(&LogRow, &Model, &[Image]),
 ) -> Result<()> {
-    if !(settings.lr_final.is_finite() && settings.lr_final > 0.0) {
-        return Err(Error(format!("lr_final: {} must be finite and > 0", settings.lr_final)));
-    }
-    for (name, v) in [("latent_penalty", settings.latent_penalty), ("weight_penalty", settings.weight_penalty)] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(Error(format!("{name}: {v} must be finite and >= 0")));
-        }
-    }
-    let anchor = model.w.clone();
+    settings.check()?;
     let start = Instant::now();
     let mut adam_z = Adam::new(model.z.len(), settings.lr_latent);
     let mut adam_w = Adam::new(model.w.len(), settings.lr_weights);
@@ -172,43 +224,25 @@ pub fn train(
             Some(c) if coarse_now => c,
             _ => &fine,
         };
-        let fine_progress = match settings.time_budget {
-            _ if coarse_now => 0.0,
-            Some(budget) => (elapsed - settings.coarse_fraction * budget) / (budget * (1.0 - settings.coarse_fraction)),
-            None => {
-                (it - coarse_updates.min(it)) as f64
-                    / (settings.iterations - coarse_updates.min(settings.iterations)).max(1) as f64
-            }
-        };
-        let decay = settings.lr_final.powf(fine_progress.clamp(0.0, 1.0));
-        (adam_z.lr, adam_w.lr) = (settings.lr_latent * decay, settings.lr_weights * decay);
         let decoded = model.density(&problem.scene.density);
+        check_finite(&decoded, "training", it)?;
         let seed = settings.seed.wrapping_mul(1_000_003).wrapping_add(it as u64);
         let scene = level.scene_at(&decoded, settings.photons, settings.spp, seed);
         let (frozen, shifted) = level.freeze(&scene, &decoded, settings.decorrelate.then_some(seed ^ DECORRELATE_SEED));
         let wall_s = start.elapsed().as_secs_f64();
         // The log row is serial work: a helper thread computes it while the gradient runs.
         let (g, row) = par::alongside(
-            || parameter_gradient(shifted.as_ref().unwrap_or(level), model, &frozen, &estimator, it, &mut rng),
+            || parameter_gradient(shifted.as_ref().unwrap_or(level), model, &frozen, &estimator, &mut rng),
             || log_row(it, problem, level, &model.mask, &decoded, &frozen, wall_s),
         );
         observe(&row, model, &frozen.images);
         let mut g = g?;
-        if settings.sparsity > 0.0 {
-            add_sparsity_gradient(model, settings.sparsity, &mut g.latent, &mut g.weights);
-        }
         if settings.latent_penalty > 0.0 {
             let k = model.z.len().max(1) as f64;
             let scale = 2.0 * settings.latent_penalty * target_power / k;
             for (&i, v) in g.latent.indices.iter().zip(&mut g.latent.values) {
                 *v += scale * model.z[i];
             }
-        }
-        if settings.weight_penalty > 0.0 {
-            let scale = 2.0 * settings.weight_penalty * target_power / model.w.len().max(1) as f64;
-            let mut dense = g.weights.to_dense(model.w.len()).unwrap_or_else(|| vec![0.0; model.w.len()]);
-            dense.iter_mut().zip(model.w.iter().zip(&anchor)).for_each(|(d, (w, w0))| *d += scale * (w - w0));
-            g.weights = Entries::dense(dense);
         }
         adam_z.step_sparse(&mut model.z, &g.latent.indices, &g.latent.values);
         adam_w.step_sparse(&mut model.w, &g.weights.indices, &g.weights.values);
@@ -248,20 +282,5 @@ pub(super) fn log_row(
         mean_density: hull.iter().sum::<f64>() / hull.len().max(1) as f64,
         max_density: hull.iter().fold(0.0, |a: f64, &b| a.max(b)),
         wall_s,
-    }
-}
-
-/// Adds the gradient of `sparsity * mean(density over the hull)` to both
-/// sparse gradients (made dense where they were not).
-fn add_sparsity_gradient(model: &Model, sparsity: f64, gz: &mut Entries, gw: &mut Entries) {
-    let hull = model.mask.iter().filter(|&&m| m).count().max(1) as f64;
-    let seed: Vec<f64> = model.mask.iter().map(|&m| if m { sparsity / hull } else { 0.0 }).collect();
-    let (dz, dw) = model.decoder.backward(&model.z, &model.w, &model.mask, &seed);
-    for (g, d) in [(gz, dz), (gw, dw)] {
-        let mut dense = d;
-        for (&i, &v) in g.indices.iter().zip(&g.values) {
-            dense[i] += v;
-        }
-        *g = Entries::dense(dense);
     }
 }
