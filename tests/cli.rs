@@ -1,17 +1,12 @@
 //! The command line: outputs and their names, and a one-line error naming
 //! the field (non-zero exit, no panic) for every kind of bad input.
+mod common;
+use common::temp_dir;
 
 use dualphoton::io::npy;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("dualphoton-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn dualphoton(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dualphoton")).args(args).output().unwrap()

@@ -1,6 +1,8 @@
 //! `dualphoton grad` and `dualphoton judge` end to end on a tiny scene
 //! (6^3 blob, two 8x8 cameras): what they write, and that it agrees with
 //! the library and with finite differences.
+mod common;
+use common::temp_dir;
 
 use dualphoton::eval::scenes;
 use dualphoton::grad::loss::mse;
@@ -12,13 +14,6 @@ use dualphoton::render::render_photon;
 use dualphoton::scene::{file, Scene};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("dualphoton-e2e-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn dualphoton(args: &[&str]) -> Output {
     let out = Command::new(env!("CARGO_BIN_EXE_dualphoton")).args(args).output().unwrap();

@@ -2,6 +2,8 @@
 //! is a one-line error naming the bad field or file, found before any work
 //! (or after bounded work), never a panic, an abort, a hang, or NaN or
 //! infinity in an output.
+mod common;
+use common::temp_dir;
 
 use dualphoton::data::scalarflow::load_scalarflow;
 use dualphoton::eval::density::density_metrics;
@@ -19,13 +21,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Instant;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("dualphoton-hostile-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// Asserts that `result` is one line that starts with (or names) `field`.
 fn fails<T: std::fmt::Debug>(result: dualphoton::Result<T>, field: &str) -> String {

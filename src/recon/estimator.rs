@@ -132,9 +132,11 @@ pub struct ParamGradient {
 }
 
 /// Up to 64^3 one pass of 64 lanes gives the latent's gradient soonest
-/// (2.7 s against 3.3 s with 32 and 4.7 s with 16); at 128^3, 32 lanes do
-/// (8.7 s against 9.8 s with 64, whose memory traffic is 3 GB, and 11.4 s
-/// with 16; results/bench_grad at 9cfa4fa). The bits are the same either way.
+/// (results/bench_grad). Above it, passes of 32 lanes keep the peak memory
+/// of a 128^3 gradient at about 1.9 GB instead of 3 GB; whether 32 or 64
+/// lanes is faster there has changed between machines and revisions
+/// (results/bench_grad has the current numbers). The bits are the same
+/// either way.
 const WIDE_LANES_UP_TO: usize = 64 * 64 * 64;
 
 /// Most lanes per forward pass on grids above [`WIDE_LANES_UP_TO`] voxels.

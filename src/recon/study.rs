@@ -11,14 +11,17 @@ use serde::Serialize;
 use serde_json::Value;
 use std::path::Path;
 
+/// The largest study file read: settings, not data.
+pub const MAX_STUDY_BYTES: u64 = 1 << 20;
+
 /// Reads the study file `path` (a JSON object; `--study` names it in errors).
 pub fn read_study(path: &Path) -> Result<Value> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| Error(format!("--study: cannot read {}: {e}", path.display())))?;
+    let shown = crate::error::shorten(&path.display().to_string());
+    let bytes = crate::io::npy::read_bounded(path, MAX_STUDY_BYTES).map_err(|e| Error(format!("--study: {shown}: {e}")))?;
     let value: Value =
-        serde_json::from_str(&text).map_err(|e| Error(format!("--study: {} is not JSON: {e}", path.display())))?;
+        serde_json::from_slice(&bytes).map_err(|e| Error(format!("--study: {shown} is not JSON: {e}")))?;
     if !value.is_object() {
-        return Err(Error(format!("--study: {} must hold a JSON object of settings", path.display())));
+        return Err(Error(format!("--study: {shown} must hold a JSON object of settings")));
     }
     Ok(value)
 }
@@ -121,5 +124,11 @@ mod tests {
         // eight_views.json sets experiment_table1's cameras too: tests/training.rs reads it.
         let count = std::fs::read_dir(&dir).unwrap().count();
         assert_eq!(count, 3, "every study file in {} is read by a test", dir.display());
+    }
+
+    #[test]
+    fn a_study_file_that_is_not_a_file_is_an_error_before_reading() {
+        let e = read_study(Path::new("/dev/zero")).unwrap_err().to_string();
+        assert!(e.starts_with("--study:") && e.contains("not a regular file"), "{e}");
     }
 }
