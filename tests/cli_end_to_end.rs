@@ -12,7 +12,7 @@ use dualphoton::io::npy;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::render_photon;
 use dualphoton::scene::{file, Scene};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn dualphoton(args: &[&str]) -> Output {

@@ -18,7 +18,7 @@ use dualphoton::scene::validate::{render_memory, MAX_RENDER_BYTES};
 use dualphoton::scene::Scene;
 use dualphoton::volume::Grid;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Instant;
 

@@ -17,7 +17,8 @@ pub const MAX_STUDY_BYTES: u64 = 1 << 20;
 /// Reads the study file `path` (a JSON object; `--study` names it in errors).
 pub fn read_study(path: &Path) -> Result<Value> {
     let shown = crate::error::shorten(&path.display().to_string());
-    let bytes = crate::io::npy::read_bounded(path, MAX_STUDY_BYTES).map_err(|e| Error(format!("--study: {shown}: {e}")))?;
+    let bytes =
+        crate::io::npy::read_bounded(path, MAX_STUDY_BYTES).map_err(|e| Error(format!("--study: {shown}: {e}")))?;
     let value: Value =
         serde_json::from_slice(&bytes).map_err(|e| Error(format!("--study: {shown} is not JSON: {e}")))?;
     if !value.is_object() {
