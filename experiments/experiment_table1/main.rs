@@ -210,8 +210,7 @@ fn main() -> std::process::ExitCode {
 
 fn run(mut args: Args) -> Result<()> {
     let setup = settings(&mut args)?;
-    let started = Instant::now();
-    std::fs::create_dir_all(&args.out)?;
+    let out = dualphoton::experiment::Run::start(&args.out)?;
 
     // Ground truth and its images (more photons and samples than a training update).
     let target_photons = if args.smoke { 20_000 } else { paper::TARGET_PHOTONS };
@@ -245,6 +244,6 @@ fn run(mut args: Args) -> Result<()> {
         }
         None => None,
     };
-    let run = report::Run { args: &args, setup: &setup, truth: &truth, n_train, started };
+    let run = report::Run { args: &args, setup: &setup, truth: &truth, n_train, out: &out };
     report::write(&run, &scene, &paper_run, prior_run.as_ref())
 }

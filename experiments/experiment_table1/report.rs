@@ -6,13 +6,11 @@ use dualphoton::error::Result;
 use dualphoton::eval::fit_quality::fit_quality_markdown;
 use dualphoton::eval::metrics::hull_stats;
 use dualphoton::io::figures::{table1_chart, Table1Bars};
-use dualphoton::io::manifest::write_manifest;
 use dualphoton::recon::paper::TABLE1;
 use dualphoton::scene::Scene;
 use dualphoton::volume::Grid;
 use serde::Serialize;
 use std::fmt::Write as _;
-use std::time::Instant;
 
 /// What the report is about beyond the methods' runs.
 pub struct Run<'a> {
@@ -20,7 +18,8 @@ pub struct Run<'a> {
     pub setup: &'a Setup,
     pub truth: &'a Grid<f64>,
     pub n_train: usize,
-    pub started: Instant,
+    /// The output folder and the run's clock.
+    pub out: &'a dualphoton::experiment::Run,
 }
 
 /// What produced a run: its options and settings, then what they led to.
@@ -45,7 +44,7 @@ type Measure<'a> = (&'a str, &'a dyn Fn(&MethodRun) -> String, &'a str);
 
 /// Writes `table1.{csv,md,svg}` and `manifest.json` into `--out` and prints the Markdown.
 pub fn write(run: &Run, scene: &Scene, paper_run: &MethodRun, prior_run: Option<&MethodRun>) -> Result<()> {
-    let (args, setup, truth, n_train, started) = (run.args, run.setup, run.truth, run.n_train, run.started);
+    let (args, setup, truth, n_train) = (run.args, run.setup, run.truth, run.n_train);
     let r = &paper_run.r;
     let mask = &r.model.mask;
     let hull_voxels = mask.iter().filter(|&&m| m).count();
@@ -121,8 +120,7 @@ pub fn write(run: &Run, scene: &Scene, paper_run: &MethodRun, prior_run: Option<
             p.r.model.decoder.param_count(),
         );
     }
-    let _ =
-        writeln!(md, "Wall time {:.0} s ({} threads).", started.elapsed().as_secs_f64(), rayon::current_num_threads());
+    let _ = writeln!(md, "Wall time {:.0} s ({} threads).", run.out.seconds(), rayon::current_num_threads());
     for (name, m) in &runs {
         let _ = write!(
             md,
@@ -170,7 +168,7 @@ pub fn write(run: &Run, scene: &Scene, paper_run: &MethodRun, prior_run: Option<
         decoder_parameters: r.model.decoder.param_count(),
         prior_decoder_parameters: prior_run.map(|p| p.r.model.decoder.param_count()),
     };
-    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
+    run.out.write_manifest(&manifest)?;
     print!("{md}");
     Ok(())
 }

@@ -29,7 +29,7 @@ mod report;
 use clap::Parser;
 use dualphoton::data::plume::Unusual;
 use dualphoton::error::{Error, Result};
-use dualphoton::io::manifest::write_manifest;
+use dualphoton::experiment::Run;
 use dualphoton::io::rows::write_rows;
 use dualphoton::prior::Prior;
 use dualphoton::recon::hull::HullSettings;
@@ -43,7 +43,6 @@ use fits::Plume;
 use plumes::{read_rows, Which};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Parser, Serialize)]
 #[command(
@@ -161,7 +160,7 @@ struct Manifest<'a> {
 }
 
 fn run(args: Args) -> Result<()> {
-    let started = Instant::now();
+    let out = Run::timer(&args.out);
     let (plumes, methods, setup) = settings(&args)?;
     let prior = match methods.iter().any(|m| m != "paper") {
         true => Some(Prior::load(&args.prior)?),
@@ -208,7 +207,7 @@ fn run(args: Args) -> Result<()> {
     std::fs::write(args.out.join("table.md"), report::table_markdown(&rows))?;
     report::figures(args.res, &args.out, &plumes, &cache)?;
     let manifest = Manifest { args: &args, setup: &setup };
-    write_manifest(&args.out.join("manifest.json"), &manifest, started.elapsed().as_secs_f64())?;
+    out.write_manifest(&manifest)?;
     print!("{}", report::table_markdown(&rows));
     Ok(())
 }
