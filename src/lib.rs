@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod ad;
+pub mod capture;
 pub mod data;
 pub mod error;
 pub mod eval;

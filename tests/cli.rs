@@ -148,6 +148,7 @@ fn bad_fields_are_errors() {
         ("nothing", Box::new(|s| s["cameras"][0]["look_at"] = json!([0.0, 0.0, 5.0])), "cameras[0]"),
         ("fov", Box::new(|s| s["cameras"][0]["fov_y_deg"] = json!(180.0)), "cameras[0].fov_y_deg"),
         ("up", Box::new(|s| s["cameras"][0]["up"] = json!([0.0, 0.0, 1.0])), "cameras[0].up"),
+        ("fx", Box::new(|s| pinhole(&mut s["cameras"][0], -20.0)), "cameras[0].fx"),
         ("nocam", Box::new(|s| s["cameras"] = json!([])), "cameras"),
         ("typo", Box::new(|s| s["lights"][0]["intesity"] = json!(3.0)), "intesity"),
         ("missing", Box::new(|s| s["volume"].as_object_mut().unwrap().remove("g").map(|_| ()).unwrap()), "volume.g"),
@@ -159,6 +160,14 @@ fn bad_fields_are_errors() {
         let mut scene = valid_scene();
         mutate(&mut scene);
         render_error(name, scene, blob(8), &[8, 8, 8], field);
+    }
+}
+
+/// Gives the camera at `v` the intrinsics `fx = fy = f`, principal point at its centre, in place of its field of view.
+fn pinhole(v: &mut Value, f: f64) {
+    remove(v, "fov_y_deg");
+    for (key, value) in [("fx", f), ("fy", f), ("cx", 4.0), ("cy", 3.0)] {
+        v[key] = json!(value);
     }
 }
 
@@ -185,6 +194,15 @@ fn file_errors_name_the_field_by_its_path() {
         ("missing_position", Box::new(|s| remove(&mut s["lights"][0], "position")), "lights[0].position"),
         ("missing_fov", Box::new(|s| remove(&mut s["cameras"][1], "fov_y_deg")), "cameras[1].fov_y_deg"),
         ("missing_lights", Box::new(|s| remove(s, "lights")), "lights"),
+        (
+            "missing_cy",
+            Box::new(|s| {
+                pinhole(&mut s["cameras"][0], 20.0);
+                remove(&mut s["cameras"][0], "cy")
+            }),
+            "cameras[0].cy",
+        ),
+        ("fov_and_fx", Box::new(|s| s["cameras"][1]["fx"] = json!(20.0)), "cameras[1]: give either"),
         ("missing_density", Box::new(|s| remove(&mut s["volume"], "density")), "volume.density"),
         // Unknown fields.
         ("unknown_render", Box::new(|s| s["render"]["phtons"] = json!(10)), "render.phtons"),

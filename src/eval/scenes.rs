@@ -5,7 +5,7 @@
 //! pixels): analytic and finite-difference checks render them many times.
 
 use crate::math::Vec3;
-use crate::scene::{Camera, Light, Medium, RenderSettings, Scene};
+use crate::scene::{Camera, Lens, Light, Medium, RenderSettings, Scene};
 use crate::volume::Grid;
 
 /// A grid of `shape` (z, y, x) over the unit box with `f(voxel centre)` in every voxel.
@@ -54,7 +54,7 @@ pub fn blob(n: usize) -> Grid<f64> {
 pub fn look_at_origin(position: Vec3, res: usize, fov_y_deg: f64) -> Camera {
     // Any up hint not parallel to the viewing direction will do.
     let up = if position.normalize().y.abs() > 0.9 { Vec3::new(1.0, 0.0, 0.0) } else { Vec3::new(0.0, 1.0, 0.0) };
-    Camera { position, look_at: Vec3::zeros(), up, fov_y_deg, width: res, height: res }
+    Camera { position, look_at: Vec3::zeros(), up, lens: Lens::FovY(fov_y_deg), width: res, height: res }
 }
 
 /// A medium of extinction scale 20 (a density of 0.05 is one mean free path per unit).

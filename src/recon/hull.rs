@@ -55,13 +55,20 @@ pub fn silhouette(image: &Image, threshold: f64, dilate: usize) -> Vec<bool> {
 /// silhouette (from `images`, one per camera) covers the voxel centre.
 pub fn visual_hull(grid: &Grid<f64>, cameras: &[Camera], images: &[Image], threshold: f64, dilate: usize) -> Vec<bool> {
     let silhouettes: Vec<Vec<bool>> = images.iter().map(|i| silhouette(i, threshold, dilate)).collect();
+    carve(grid, cameras, &silhouettes)
+}
+
+/// The voxels of `grid` whose centre every camera sees inside its
+/// silhouette (`silhouettes[c]` covers camera `c`'s image); a voxel outside
+/// a camera's image is carved.
+pub fn carve(grid: &Grid<f64>, cameras: &[Camera], silhouettes: &[Vec<bool>]) -> Vec<bool> {
     let [nz, ny, nx] = grid.shape;
     let mut hull = vec![false; grid.len()];
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
                 let c = grid.voxel_center(k, j, i);
-                hull[grid.index(k, j, i)] = cameras.iter().zip(&silhouettes).all(|(cam, sil)| {
+                hull[grid.index(k, j, i)] = cameras.iter().zip(silhouettes).all(|(cam, sil)| {
                     cam.project(&c).is_some_and(|(x, y)| {
                         x >= 0.0
                             && y >= 0.0

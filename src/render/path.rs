@@ -363,7 +363,7 @@ mod tests {
             position: Vec3::new(0.3, 0.2, 2.0),
             look_at: Vec3::zeros(),
             up: Vec3::new(0.0, 1.0, 0.0),
-            fov_y_deg: 45.0,
+            lens: crate::scene::Lens::FovY(45.0),
             width: 8,
             height: 8,
         };

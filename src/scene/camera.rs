@@ -1,7 +1,30 @@
-//! Pinhole cameras (docs/DESIGN.md §1): vertical field of view, square pixels,
-//! image row 0 at the top, a pixel's value the mean radiance over its footprint.
+//! Pinhole cameras (docs/DESIGN.md §1): image row 0 at the top, a pixel's
+//! value the mean radiance over its footprint. The lens is either a vertical
+//! field of view (square pixels, principal point at the centre) or general
+//! intrinsics in pixels, as calibrations give them; the latter survive
+//! cropping and downsampling, which move and scale the principal point.
 
 use crate::math::{Ray, Vec3};
+
+/// How a camera maps viewing directions to image positions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lens {
+    /// Vertical field of view in degrees, in (0, 180); square pixels,
+    /// principal point at the image centre.
+    FovY(f64),
+    /// Intrinsics in pixels, `x` to the right and `y` down from the image's
+    /// top-left corner.
+    Pinhole {
+        /// Horizontal focal length (> 0).
+        fx: f64,
+        /// Vertical focal length (> 0).
+        fy: f64,
+        /// Principal point, x.
+        cx: f64,
+        /// Principal point, y.
+        cy: f64,
+    },
+}
 
 /// A pinhole camera.
 #[derive(Clone, Debug, PartialEq)]
@@ -12,8 +35,8 @@ pub struct Camera {
     pub look_at: Vec3,
     /// Up hint; not parallel to the viewing direction.
     pub up: Vec3,
-    /// Vertical field of view in degrees, in (0, 180).
-    pub fov_y_deg: f64,
+    /// The lens.
+    pub lens: Lens,
     /// Image width in pixels (> 0).
     pub width: usize,
     /// Image height in pixels (> 0).
@@ -29,13 +52,30 @@ impl Camera {
         (right, up, forward)
     }
 
+    /// The intrinsics `[fx, fy, cx, cy]` in pixels, whatever the lens.
+    pub fn intrinsics(&self) -> [f64; 4] {
+        match self.lens {
+            Lens::FovY(deg) => {
+                let f = 0.5 * self.height as f64 / (deg.to_radians() * 0.5).tan();
+                [f, f, 0.5 * self.width as f64, 0.5 * self.height as f64]
+            }
+            Lens::Pinhole { fx, fy, cx, cy } => [fx, fy, cx, cy],
+        }
+    }
+
     /// The ray through image position `(x, y)` in pixel units: `x` in
     /// `[0, width]` to the right, `y` in `[0, height]` downwards.
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let (right, up, forward) = self.basis();
-        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
-        let sx = (2.0 * x / self.width as f64 - 1.0) * tan_half * self.width as f64 / self.height as f64;
-        let sy = (1.0 - 2.0 * y / self.height as f64) * tan_half;
+        let (sx, sy) = match self.lens {
+            // Kept in this form so that existing scenes render to the same bits.
+            Lens::FovY(deg) => {
+                let tan_half = (deg.to_radians() * 0.5).tan();
+                let sx = (2.0 * x / self.width as f64 - 1.0) * tan_half * self.width as f64 / self.height as f64;
+                (sx, (1.0 - 2.0 * y / self.height as f64) * tan_half)
+            }
+            Lens::Pinhole { fx, fy, cx, cy } => ((x - cx) / fx, (cy - y) / fy),
+        };
         Ray { origin: self.position, dir: (forward + right * sx + up * sy).normalize() }
     }
 
@@ -48,11 +88,35 @@ impl Camera {
         if depth <= 0.0 {
             return None;
         }
-        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
-        let aspect = self.width as f64 / self.height as f64;
-        let sx = v.dot(&right) / depth / (tan_half * aspect);
-        let sy = v.dot(&up) / depth / tan_half;
-        Some(((sx + 1.0) * 0.5 * self.width as f64, (1.0 - sy) * 0.5 * self.height as f64))
+        let (sx, sy) = (v.dot(&right) / depth, v.dot(&up) / depth);
+        Some(match self.lens {
+            Lens::FovY(deg) => {
+                let tan_half = (deg.to_radians() * 0.5).tan();
+                let aspect = self.width as f64 / self.height as f64;
+                let (sx, sy) = (sx / (tan_half * aspect), sy / tan_half);
+                ((sx + 1.0) * 0.5 * self.width as f64, (1.0 - sy) * 0.5 * self.height as f64)
+            }
+            Lens::Pinhole { fx, fy, cx, cy } => (cx + fx * sx, cy - fy * sy),
+        })
+    }
+
+    /// The same camera seeing only the `width` x `height` window whose
+    /// top-left pixel is `(x0, y0)`: the principal point moves, nothing else.
+    pub fn crop(&self, x0: usize, y0: usize, width: usize, height: usize) -> Camera {
+        let [fx, fy, cx, cy] = self.intrinsics();
+        let lens = Lens::Pinhole { fx, fy, cx: cx - x0 as f64, cy: cy - y0 as f64 };
+        Camera { lens, width, height, ..self.clone() }
+    }
+
+    /// The same camera for the image averaged over `factor` x `factor`
+    /// blocks (a partial block at the right or bottom edge is dropped): new
+    /// pixel `(u, v)` covers old pixels `factor*u .. factor*(u+1)`, so every
+    /// intrinsic divides by `factor`.
+    pub fn downsample(&self, factor: usize) -> Camera {
+        let [fx, fy, cx, cy] = self.intrinsics();
+        let f = factor as f64;
+        let lens = Lens::Pinhole { fx: fx / f, fy: fy / f, cx: cx / f, cy: cy / f };
+        Camera { lens, width: self.width / factor, height: self.height / factor, ..self.clone() }
     }
 
     /// Number of pixels.
@@ -65,21 +129,54 @@ impl Camera {
 mod tests {
     use super::*;
 
-    #[test]
-    fn project_inverts_ray() {
-        let c = Camera {
+    fn camera(lens: Lens) -> Camera {
+        Camera {
             position: Vec3::new(1.0, 0.5, 2.5),
             look_at: Vec3::new(0.0, 0.1, 0.0),
             up: Vec3::new(0.0, 1.0, 0.0),
-            fov_y_deg: 40.0,
+            lens,
             width: 64,
             height: 48,
-        };
-        for (x, y) in [(0.5, 0.5), (10.2, 40.7), (63.9, 1.0)] {
-            let r = c.ray(x, y);
-            let (px, py) = c.project(&r.at(2.0)).unwrap();
-            assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9);
         }
-        assert!(c.project(&Vec3::new(1.0, 0.5, 4.0)).is_none());
+    }
+
+    #[test]
+    fn project_inverts_ray() {
+        for lens in [Lens::FovY(40.0), Lens::Pinhole { fx: 70.0, fy: 66.0, cx: 30.5, cy: 20.0 }] {
+            let c = camera(lens);
+            for (x, y) in [(0.5, 0.5), (10.2, 40.7), (63.9, 1.0)] {
+                let r = c.ray(x, y);
+                let (px, py) = c.project(&r.at(2.0)).unwrap();
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{lens:?}");
+            }
+            assert!(c.project(&Vec3::new(1.0, 0.5, 4.0)).is_none());
+        }
+    }
+
+    #[test]
+    fn a_field_of_view_is_a_centred_pinhole() {
+        let fov = camera(Lens::FovY(40.0));
+        let [fx, fy, cx, cy] = fov.intrinsics();
+        let pinhole = camera(Lens::Pinhole { fx, fy, cx, cy });
+        for (x, y) in [(0.0, 0.0), (10.2, 40.7), (64.0, 48.0)] {
+            assert!((fov.ray(x, y).dir - pinhole.ray(x, y).dir).norm() < 1e-12);
+        }
+        // The top edge of the image is half the field of view above the axis.
+        let (_, up, forward) = fov.basis();
+        let top = fov.ray(32.0, 0.0).dir;
+        assert!((top.dot(&up).atan2(top.dot(&forward)).to_degrees() - 20.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn cropping_and_downsampling_keep_every_point_in_place() {
+        let full = camera(Lens::Pinhole { fx: 70.0, fy: 66.0, cx: 30.5, cy: 20.0 });
+        let p = Vec3::new(0.1, 0.2, -0.1);
+        let (x, y) = full.project(&p).unwrap();
+        let (xc, yc) = full.crop(8, 4, 40, 30).project(&p).unwrap();
+        assert!((xc - (x - 8.0)).abs() < 1e-9 && (yc - (y - 4.0)).abs() < 1e-9);
+        let half = full.downsample(2);
+        assert_eq!((half.width, half.height), (32, 24));
+        let (xh, yh) = half.project(&p).unwrap();
+        assert!((xh - x / 2.0).abs() < 1e-9 && (yh - y / 2.0).abs() < 1e-9);
     }
 }

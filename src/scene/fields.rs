@@ -12,7 +12,7 @@ use serde_json::{Map, Value};
 const NOT_FINITE: &str = "JSON has no NaN or infinity (writers put null or NaN there): give a finite number";
 
 /// The fields of one JSON object, at `path` in the file.
-pub(super) struct Fields<'a> {
+pub(crate) struct Fields<'a> {
     map: &'a Map<String, Value>,
     path: String,
 }
@@ -28,6 +28,15 @@ impl<'a> Fields<'a> {
             bail!("{}: unknown field (expected one of: {})", fields.name(key), known.join(", "));
         }
         Ok(fields)
+    }
+
+    /// The object `value` at `path`, whatever other keys it holds (files
+    /// written by other programs carry keys this project does not read).
+    pub fn lenient(value: &'a Value, path: &str) -> Result<Self> {
+        let Some(map) = value.as_object() else {
+            bail!("{}: {} is not an object {{...}}", if path.is_empty() { "file" } else { path }, kind(value));
+        };
+        Ok(Fields { map, path: path.into() })
     }
 
     /// The path of field `key`.
@@ -107,10 +116,16 @@ fn kind(v: &Value) -> &'static str {
     }
 }
 
+/// JSON text parsed; a bare `NaN` or `Infinity` becomes `null`, so that the
+/// field reader names the field.
+pub(crate) fn parse_json(text: &str) -> std::result::Result<Value, serde_json::Error> {
+    serde_json::from_str(text).or_else(|e| nan_as_null(text).and_then(|t| serde_json::from_str(&t).ok()).ok_or(e))
+}
+
 /// `text` with every bare `NaN`, `Infinity` or `-Infinity` outside strings
 /// written as `null` (so the field reader can name the field), or `None`
 /// if there is none.
-pub(super) fn nan_as_null(text: &str) -> Option<String> {
+pub(crate) fn nan_as_null(text: &str) -> Option<String> {
     let mut out = String::with_capacity(text.len());
     let (mut in_string, mut escaped, mut found) = (false, false, false);
     let mut rest = text;

@@ -5,17 +5,18 @@
 //! `density`: a `.npy` path relative to the scene file holding a float32 or
 //! float64 array of shape (Z, Y, X), `sigma_t_scale`, `albedo`, `g`,
 //! `max_order`), `lights` (`position`, `intensity`), `cameras` (`position`,
-//! `look_at`, optional `up`, `fov_y_deg`, `width`, `height`) and an optional
+//! `look_at`, optional `up`, `width`, `height`, and either `fov_y_deg` or
+//! the intrinsics `fx`, `fy`, `cx`, `cy` in pixels) and an optional
 //! `render` (`photons`, `kernel_radius`, `step`, `seed`, `spp`, `path_spp`,
 //! `shadows`: `"auto"`, `"grid"` or `"marched"`, `shadow_cell`, `photon_step`).
 //! Every field is required unless said otherwise, unknown fields are
 //! errors, and numbers must be finite: JSON cannot spell NaN or infinity,
 //! and `null` or a bare `NaN` in their place is reported as such.
 
-use super::fields::{nan_as_null, Fields};
+use super::fields::{parse_json, Fields};
 use super::validate::finite3;
 pub use super::validate::{check_photons, validate};
-use super::{Camera, Light, Medium, RenderSettings, Scene, Shadows};
+use super::{Camera, Lens, Light, Medium, RenderSettings, Scene, Shadows};
 use crate::bail;
 use crate::error::{Error, Result};
 use crate::io::npy;
@@ -50,9 +51,20 @@ struct CameraFile {
     position: [f64; 3],
     look_at: [f64; 3],
     up: [f64; 3],
-    fov_y_deg: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fov_y_deg: Option<f64>,
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    intrinsics: Option<IntrinsicsFile>,
     width: usize,
     height: usize,
+}
+
+#[derive(Serialize)]
+struct IntrinsicsFile {
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
 }
 
 #[derive(Serialize, Default)]
@@ -107,17 +119,28 @@ fn scene_file(root: &Value) -> Result<SceneFile> {
             Ok(LightFile { position: l.required("position")?, intensity: l.required("intensity")? })
         })
         .collect::<Result<_>>()?;
-    let known = ["position", "look_at", "up", "fov_y_deg", "width", "height"];
+    let known = ["position", "look_at", "up", "fov_y_deg", "fx", "fy", "cx", "cy", "width", "height"];
     let cameras = top
         .list("cameras")?
         .into_iter()
         .map(|(path, item)| {
             let c = Fields::new(item, &path, &known)?;
+            let intrinsics = match (c.get("fov_y_deg"), ["fx", "fy", "cx", "cy"].iter().any(|k| c.get(k).is_some())) {
+                (Some(_), true) => bail!("{path}: give either fov_y_deg or fx, fy, cx, cy, not both"),
+                (_, false) => None,
+                (None, true) => Some(IntrinsicsFile {
+                    fx: c.required("fx")?,
+                    fy: c.required("fy")?,
+                    cx: c.required("cx")?,
+                    cy: c.required("cy")?,
+                }),
+            };
             Ok(CameraFile {
                 position: c.required("position")?,
                 look_at: c.required("look_at")?,
                 up: c.optional("up")?.unwrap_or([0.0, 1.0, 0.0]),
-                fov_y_deg: c.required("fov_y_deg")?,
+                fov_y_deg: if intrinsics.is_some() { None } else { Some(c.required("fov_y_deg")?) },
+                intrinsics,
                 width: c.required("width")?,
                 height: c.required("height")?,
             })
@@ -156,10 +179,6 @@ fn scene_file(root: &Value) -> Result<SceneFile> {
 
 /// The JSON value of `text`; a bare `NaN` or `Infinity` (not JSON, but what
 /// Python's `json` writes) is read as `null`, so the error names its field.
-fn parse_json(text: &str) -> std::result::Result<Value, serde_json::Error> {
-    serde_json::from_str(text).or_else(|e| nan_as_null(text).and_then(|t| serde_json::from_str(&t).ok()).ok_or(e))
-}
-
 /// Largest scene file read: 64 MiB (a scene of 10,000 cameras is about 2 MB).
 pub const MAX_SCENE_BYTES: u64 = 64 << 20;
 
@@ -207,7 +226,11 @@ pub fn load(path: &Path) -> Result<Scene> {
                 position: finite3(c.position, &format!("cameras[{n}].position"))?,
                 look_at: finite3(c.look_at, &format!("cameras[{n}].look_at"))?,
                 up: finite3(c.up, &format!("cameras[{n}].up"))?,
-                fov_y_deg: c.fov_y_deg,
+                lens: match (&c.intrinsics, c.fov_y_deg) {
+                    (Some(k), _) => Lens::Pinhole { fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy },
+                    (None, Some(deg)) => Lens::FovY(deg),
+                    (None, None) => bail!("cameras[{n}].fov_y_deg: missing (or give fx, fy, cx, cy)"),
+                },
                 width: c.width,
                 height: c.height,
             })
@@ -255,7 +278,14 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
                 position: arr(&c.position),
                 look_at: arr(&c.look_at),
                 up: arr(&c.up),
-                fov_y_deg: c.fov_y_deg,
+                fov_y_deg: match c.lens {
+                    Lens::FovY(deg) => Some(deg),
+                    Lens::Pinhole { .. } => None,
+                },
+                intrinsics: match c.lens {
+                    Lens::FovY(_) => None,
+                    Lens::Pinhole { fx, fy, cx, cy } => Some(IntrinsicsFile { fx, fy, cx, cy }),
+                },
                 width: c.width,
                 height: c.height,
             })
@@ -274,4 +304,24 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
     };
     let text = serde_json::to_string_pretty(&file).map_err(|e| Error(e.to_string()))?;
     std::fs::write(dir.join(format!("{name}.json")), text + "\n").map_err(|e| Error(format!("cannot write scene: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::scenes::homogeneous;
+    use crate::scene::rig::paper_scene;
+
+    #[test]
+    fn both_lenses_survive_a_save_and_load() {
+        let mut scene = paper_scene(homogeneous(4, 0.1), 8);
+        scene.cameras[1] = scene.cameras[1].crop(1, 2, 6, 5);
+        assert!(matches!(scene.cameras[0].lens, Lens::FovY(_)));
+        assert!(matches!(scene.cameras[1].lens, Lens::Pinhole { .. }));
+        let dir = std::env::temp_dir().join(format!("dualphoton_lens_{}", std::process::id()));
+        save(&scene, &dir, "scene").unwrap();
+        let loaded = load(&dir.join("scene.json")).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!(loaded.cameras, scene.cameras);
+    }
 }

@@ -3,12 +3,12 @@
 //! paper's rig.
 
 pub mod camera;
-mod fields;
+pub(crate) mod fields;
 pub mod file;
 pub mod rig;
 pub mod validate;
 
-pub use camera::Camera;
+pub use camera::{Camera, Lens};
 
 use crate::math::Vec3;
 use crate::volume::Grid;

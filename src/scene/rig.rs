@@ -3,7 +3,7 @@
 //! 45 degrees on a circle of radius 3, all in the y = 0 plane around the
 //! volume. Azimuth `phi` is measured from +z towards +x.
 
-use super::{Camera, Light, Medium, RenderSettings, Scene};
+use super::{Camera, Lens, Light, Medium, RenderSettings, Scene};
 use crate::math::Vec3;
 use crate::volume::Grid;
 
@@ -39,7 +39,7 @@ pub fn paper_cameras(res: usize) -> Vec<Camera> {
             position: on_circle(CAMERA_RADIUS, a),
             look_at: Vec3::zeros(),
             up: Vec3::new(0.0, 1.0, 0.0),
-            fov_y_deg: 40.0,
+            lens: Lens::FovY(40.0),
             width: res,
             height: res,
         })

@@ -2,7 +2,7 @@
 //! first bad field makes a one-line error that names it (`volume.g`,
 //! `lights[0].intensity`, `cameras[1].up`, `render.photons`).
 
-use super::{Camera, RenderSettings, Scene};
+use super::{Camera, Lens, RenderSettings, Scene};
 use crate::bail;
 use crate::error::Result;
 use crate::math::{intersect_box, Vec3};
@@ -222,8 +222,17 @@ fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
     if c.width.saturating_mul(c.height) > 1 << 26 {
         bail!("cameras[{n}]: image size {}x{} is too large", c.width, c.height);
     }
-    if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
-        bail!("cameras[{n}].fov_y_deg: {} must be in (0, 180)", c.fov_y_deg);
+    match c.lens {
+        Lens::FovY(deg) if !(deg > 0.0 && deg < 180.0) => bail!("cameras[{n}].fov_y_deg: {deg} must be in (0, 180)"),
+        Lens::Pinhole { fx, fy, cx, cy } => {
+            for (name, v, positive) in [("fx", fx, true), ("fy", fy, true), ("cx", cx, false), ("cy", cy, false)] {
+                if !v.is_finite() || (positive && v <= 0.0) || v.abs() > 1e9 {
+                    let want = if positive { "a positive number of pixels" } else { "a finite number of pixels" };
+                    bail!("cameras[{n}].{name}: {v} must be {want} (at most 1e9)");
+                }
+            }
+        }
+        Lens::FovY(_) => {}
     }
     let forward = c.look_at - c.position;
     if forward.norm() < 1e-12 {
@@ -263,7 +272,7 @@ mod tests {
             position: Vec3::new(0.0, 0.0, 3.0),
             look_at: Vec3::zeros(),
             up: Vec3::new(0.0, 1.0, 0.0),
-            fov_y_deg: 30.0,
+            lens: Lens::FovY(30.0),
             width: 8,
             height: 8,
         };

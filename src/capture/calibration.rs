@@ -1,0 +1,284 @@
+//! Camera calibrations as NeRF-style projects write them.
+//!
+//! Two forms are read, told apart by their keys:
+//! - **`info.json`** (PINF, HyFluid): `train_videos` and optional
+//!   `test_videos`, each a list of `{file_name, frame_num, camera_angle_x,
+//!   camera_hw: [H, W], transform_matrix}`; the test cameras are the
+//!   held-out ones. The smoke box is `voxel_matrix` (4x4) and `voxel_scale`,
+//!   read as PINF and HyFluid read them: with the matrix's first and third
+//!   columns exchanged, the box is `M (s * u)` for `u` in `[0, 1]^3`.
+//! - **`transforms.json`** (NeRF, instant-ngp, nerfstudio): `frames`, a list
+//!   of `{file_path, transform_matrix}`, one per camera; `file_path` names a
+//!   video, an image (a one-frame capture) or a folder of images (one per
+//!   frame, in name order). Intrinsics at the top or per camera: either
+//!   `camera_angle_x` or `fl_x`, `fl_y`, `cx`, `cy`; the size `w`, `h`.
+//!   No smoke box: the user gives it.
+//!
+//! `transform_matrix` is camera-to-world in the OpenGL convention: columns
+//! right, up, backwards (the camera looks along minus the third column) and
+//! the centre of projection. `camera_angle_x` is the horizontal field of view
+//! in radians over the full width; square pixels, principal point at the
+//! image centre. Paths are relative to the calibration file.
+
+use super::{Capture, Frames, View};
+use crate::bail;
+use crate::error::{show, Error, Result};
+use crate::io::npy;
+use crate::math::Vec3;
+use crate::scene::fields::{parse_json, Fields};
+use crate::scene::{Camera, Lens};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// Largest calibration file read: 64 MiB.
+const MAX_BYTES: u64 = 64 << 20;
+
+/// How far a rotation's columns may be from orthonormal.
+const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// The capture described by the calibration file at `path`. Errors name the
+/// file and the field: unreadable, neither form, a matrix that is not a
+/// rotation and translation, a field of view outside (0, pi), a frame source
+/// that does not exist.
+pub fn load(path: &Path) -> Result<Capture> {
+    let shown = show(path);
+    let bytes = npy::read_bounded(path, MAX_BYTES).map_err(|e| Error(format!("calibration {shown}: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|_| Error(format!("calibration {shown}: not UTF-8 text")))?;
+    let root = parse_json(&text).map_err(|e| Error(format!("calibration {shown}: not valid JSON: {e}")))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let top = Fields::lenient(&root, "")?;
+    let capture = if top.get("train_videos").is_some() {
+        info_json(&top, dir)
+    } else if top.get("frames").is_some() {
+        transforms_json(&top, dir)
+    } else {
+        Err(Error("neither train_videos (an info.json) nor frames (a transforms.json) is there".into()))
+    };
+    let capture = capture.map_err(|e| Error(format!("calibration {shown}: {e}")))?;
+    if capture.views.is_empty() {
+        bail!("calibration {shown}: no cameras");
+    }
+    Ok(capture)
+}
+
+fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
+    let mut views = Vec::new();
+    for (key, held_out) in [("train_videos", false), ("test_videos", true)] {
+        if key == "test_videos" && top.get(key).is_none() {
+            continue;
+        }
+        for (path, item) in top.list(key)? {
+            let v = Fields::lenient(item, &path)?;
+            let file: String = v.required("file_name")?;
+            let count: usize = v.required("frame_num")?;
+            let [height, width]: [usize; 2] = v.required("camera_hw")?;
+            let angle: f64 = v.required("camera_angle_x")?;
+            let lens = lens_from_angle(angle, width, height, &v.name("camera_angle_x"))?;
+            let camera = camera_from_matrix(
+                &v.required::<Vec<[f64; 4]>>("transform_matrix")?,
+                lens,
+                width,
+                height,
+                &v.name("transform_matrix"),
+            )?;
+            let video = existing(dir, &file, &v.name("file_name"))?;
+            views.push(View { name: stem(&video), camera, frames: Frames::Video { path: video, count }, held_out });
+        }
+    }
+    let smoke_box = match (top.get("voxel_matrix"), top.get("voxel_scale")) {
+        (Some(_), Some(_)) => {
+            Some(smoke_box(&top.required::<Vec<[f64; 4]>>("voxel_matrix")?, &top.required("voxel_scale")?)?)
+        }
+        _ => None,
+    };
+    Ok(Capture { views, smoke_box })
+}
+
+fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
+    let mut views = Vec::new();
+    for (path, item) in top.list("frames")? {
+        let f = Fields::lenient(item, &path)?;
+        let source = existing(dir, &f.required::<String>("file_path")?, &f.name("file_path"))?;
+        let frames = frame_source(&source, &f.name("file_path"))?;
+        // Per-camera intrinsics override the shared ones.
+        let pick = |key: &str| -> Result<Option<f64>> { Ok(f.optional(key)?.or(top.optional(key)?)) };
+        let size = |key: &str| -> Result<Option<usize>> { Ok(f.optional(key)?.or(top.optional(key)?)) };
+        let (width, height) = match (size("w")?, size("h")?) {
+            (Some(w), Some(h)) => (w, h),
+            _ => {
+                image_size(&frames).ok_or_else(|| Error(format!("{path}: give w and h (the image size in pixels)")))?
+            }
+        };
+        let lens = match (pick("fl_x")?, pick("camera_angle_x")?) {
+            (Some(fx), _) => {
+                let fy = pick("fl_y")?.unwrap_or(fx);
+                let cx = pick("cx")?.unwrap_or(0.5 * width as f64);
+                let cy = pick("cy")?.unwrap_or(0.5 * height as f64);
+                Lens::Pinhole { fx, fy, cx, cy }
+            }
+            (None, Some(angle)) => lens_from_angle(angle, width, height, &format!("{path}.camera_angle_x"))?,
+            (None, None) => bail!("{path}: no intrinsics: give camera_angle_x or fl_x (here or at the top)"),
+        };
+        let camera = camera_from_matrix(
+            &f.required::<Vec<[f64; 4]>>("transform_matrix")?,
+            lens,
+            width,
+            height,
+            &f.name("transform_matrix"),
+        )?;
+        views.push(View { name: stem(&source), camera, frames, held_out: false });
+    }
+    Ok(Capture { views, smoke_box: None })
+}
+
+/// A square-pixel lens with horizontal field of view `angle` (radians) over
+/// `width`, principal point at the image centre.
+fn lens_from_angle(angle: f64, width: usize, height: usize, field: &str) -> Result<Lens> {
+    if !(angle > 0.0 && angle < std::f64::consts::PI) {
+        bail!("{field}: {angle} must be a field of view in (0, pi) radians");
+    }
+    if width == 0 || height == 0 {
+        bail!("{field}: the image size {width}x{height} is empty");
+    }
+    let f = 0.5 * width as f64 / (0.5 * angle).tan();
+    Ok(Lens::Pinhole { fx: f, fy: f, cx: 0.5 * width as f64, cy: 0.5 * height as f64 })
+}
+
+/// The camera whose camera-to-world matrix (OpenGL convention) is `m`.
+fn camera_from_matrix(m: &[[f64; 4]], lens: Lens, width: usize, height: usize, field: &str) -> Result<Camera> {
+    let rows = match m.len() {
+        3 | 4 => m,
+        n => bail!("{field}: {n} rows; a 4x4 (or 3x4) camera-to-world matrix has 4 (or 3)"),
+    };
+    if rows.iter().flatten().any(|x| !x.is_finite()) {
+        bail!("{field}: holds a value that is not a finite number");
+    }
+    if rows.len() == 4 && rows[3] != [0.0, 0.0, 0.0, 1.0] {
+        bail!("{field}: the last row is {:?}, not [0, 0, 0, 1]", rows[3]);
+    }
+    let column = |c: usize| Vec3::new(rows[0][c], rows[1][c], rows[2][c]);
+    let (right, up, back, position) = (column(0), column(1), column(2), column(3));
+    let orthonormal = [right, up, back].iter().all(|c| (c.norm() - 1.0).abs() < ROTATION_TOLERANCE)
+        && right.dot(&up).abs() < ROTATION_TOLERANCE
+        && right.dot(&back).abs() < ROTATION_TOLERANCE
+        && up.dot(&back).abs() < ROTATION_TOLERANCE;
+    if !orthonormal || right.cross(&up).dot(&back) < 0.0 {
+        bail!("{field}: the first three columns are not a rotation (orthonormal, right-handed)");
+    }
+    Ok(Camera { position, look_at: position - back, up, lens, width, height })
+}
+
+/// The world box of a PINF `voxel_matrix` and `voxel_scale` (one number or three).
+fn smoke_box(matrix: &[[f64; 4]], scale: &Value) -> Result<(Vec3, Vec3)> {
+    let s: [f64; 3] = match scale {
+        Value::Number(n) => [n.as_f64().unwrap_or(f64::NAN); 3],
+        _ => serde_json::from_value(scale.clone()).map_err(|e| Error(format!("voxel_scale: {e}")))?,
+    };
+    if s.iter().any(|x| !(x.is_finite() && *x > 0.0)) || matrix.len() < 3 {
+        bail!("voxel_scale: {s:?} must be positive sizes, voxel_matrix a 4x4 matrix");
+    }
+    // PINF and HyFluid exchange the first and third columns before use.
+    let axis = |c: usize| Vec3::new(matrix[0][c], matrix[1][c], matrix[2][c]);
+    let (ax, ay, az, origin) = (axis(2) * s[0], axis(1) * s[1], axis(0) * s[2], axis(3));
+    let mut lo = Vec3::from_element(f64::INFINITY);
+    let mut hi = Vec3::from_element(f64::NEG_INFINITY);
+    for corner in 0..8 {
+        let bit = |b: usize| ((corner >> b) & 1) as f64;
+        let p = origin + ax * bit(0) + ay * bit(1) + az * bit(2);
+        lo = lo.inf(&p);
+        hi = hi.sup(&p);
+    }
+    // The grid is axis-aligned: a box turned against the world axes would not fit it.
+    let volume = |v: Vec3| v.x * v.y * v.z;
+    if !(volume(hi - lo) <= 1.01 * s[0] * s[1] * s[2]) {
+        bail!("voxel_matrix: the smoke box is turned against the world axes; give the box yourself");
+    }
+    Ok((lo, hi))
+}
+
+/// `dir/name`, which must exist.
+fn existing(dir: &Path, name: &str, field: &str) -> Result<PathBuf> {
+    let path = dir.join(name);
+    if !path.exists() {
+        bail!("{field}: {} does not exist", show(&path));
+    }
+    Ok(path)
+}
+
+/// A video, an image, or a folder of images (one per frame, in name order).
+fn frame_source(path: &Path, field: &str) -> Result<Frames> {
+    if path.is_dir() {
+        let mut images: Vec<PathBuf> = std::fs::read_dir(path)
+            .map_err(|e| Error(format!("{field}: cannot list {}: {e}", show(path))))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| super::frames::is_image(p))
+            .collect();
+        images.sort();
+        if images.is_empty() {
+            bail!("{field}: {} holds no PNG, JPEG or .npy images", show(path));
+        }
+        return Ok(Frames::Images(images));
+    }
+    if super::frames::is_image(path) {
+        return Ok(Frames::Images(vec![path.to_path_buf()]));
+    }
+    bail!("{field}: {} is neither a folder of images nor an image; for a video, use an info.json", show(path))
+}
+
+/// The size of the first image of `frames`, read from its header.
+fn image_size(frames: &Frames) -> Option<(usize, usize)> {
+    match frames {
+        Frames::Images(paths) => super::frames::image_size(paths.first()?).ok(),
+        Frames::Video { .. } => None,
+    }
+}
+
+/// The file or folder name without its extension.
+fn stem(path: &Path) -> String {
+    path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_opengl_matrix_looks_down_its_minus_z() {
+        let lens = Lens::Pinhole { fx: 100.0, fy: 100.0, cx: 50.0, cy: 40.0 };
+        // Camera at (0, 0, 3) looking at the origin: the identity rotation.
+        let m = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 3.0], [0.0, 0.0, 0.0, 1.0]];
+        let c = camera_from_matrix(&m, lens, 100, 80, "m").unwrap();
+        let (x, y) = c.project(&Vec3::zeros()).unwrap();
+        assert!((x - 50.0).abs() < 1e-12 && (y - 40.0).abs() < 1e-12);
+        // A point up and to the right lands up (smaller y) and to the right.
+        let (x, y) = c.project(&Vec3::new(0.3, 0.3, 0.0)).unwrap();
+        assert!((x - 60.0).abs() < 1e-9 && (y - 30.0).abs() < 1e-9);
+        let mut mirrored = m;
+        mirrored[0][0] = -1.0;
+        assert!(camera_from_matrix(&mirrored, lens, 100, 80, "m").unwrap_err().0.contains("right-handed"));
+        let mut sheared = m;
+        sheared[0][1] = 0.2;
+        assert!(camera_from_matrix(&sheared, lens, 100, 80, "m").is_err());
+    }
+
+    #[test]
+    fn the_pinf_box_is_turned_by_the_matrix() {
+        // ScalarFlow's: a quarter turn about y and an offset.
+        let m = [[0.0, 0.0, 1.0, 0.1], [0.0, 1.0, 0.0, -0.05], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        let (lo, hi) = smoke_box(&m, &serde_json::json!([0.4, 0.7, 0.5])).unwrap();
+        // Exchanged columns: x gets 0.4 along +x, y 0.7, z 0.5 along -z.
+        assert!((lo - Vec3::new(0.1, -0.05, -0.5)).norm() < 1e-12, "{lo:?}");
+        assert!((hi - Vec3::new(0.5, 0.65, 0.0)).norm() < 1e-12, "{hi:?}");
+        let c = std::f64::consts::FRAC_1_SQRT_2;
+        let turned = [[c, 0.0, c, 0.0], [0.0, 1.0, 0.0, 0.0], [-c, 0.0, c, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        assert!(smoke_box(&turned, &serde_json::json!(0.5)).unwrap_err().0.contains("turned"));
+    }
+
+    #[test]
+    fn a_horizontal_angle_spans_the_width() {
+        let Lens::Pinhole { fx, fy, cx, cy } = lens_from_angle(0.5, 1080, 1920, "a").unwrap() else { panic!() };
+        assert!((2.0 * (0.5 * 1080.0 / fx).atan() - 0.5).abs() < 1e-12);
+        assert_eq!((fx, cx, cy), (fy, 540.0, 960.0));
+        assert!(lens_from_angle(3.2, 10, 10, "a").is_err() && lens_from_angle(0.0, 10, 10, "a").is_err());
+    }
+}

@@ -1,0 +1,167 @@
+//! Frames of a capture as images of code value / full scale (0..1 for
+//! 8- and 16-bit data), grey: the mean of the colour channels.
+//!
+//! Videos are decoded by the `ffmpeg` program, as PINF and HyFluid decode
+//! them (to 8-bit RGB; a limited-range video is stretched to full range).
+//! No Rust crate decodes these H.264 files exactly: the `openh264` crate
+//! was measured to decode their B-frames wrongly. PNG and JPEG (8 or 16
+//! bit) are read by the `image` crate; `.npy` frames ((H, W) or (H, W, C),
+//! float values as they are, `uint8` / 255) by the project's reader.
+
+use super::{Frames, View};
+use crate::bail;
+use crate::error::{show, Error, Result};
+use crate::image::Image;
+use crate::io::npy;
+use std::io::Read;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+/// What to tell a user without `ffmpeg`.
+pub const NO_FFMPEG: &str = "the ffmpeg program decodes videos and was not found: install it (Debian/Ubuntu: \
+                             apt install ffmpeg; macOS: brew install ffmpeg) or extract the frames as PNG images \
+                             and give a transforms.json";
+
+/// True if `ffmpeg` can be run.
+pub fn have_ffmpeg() -> bool {
+    Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// True for the image files a folder of frames may hold.
+pub fn is_image(path: &Path) -> bool {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+    path.is_file() && matches!(ext.as_str(), "png" | "jpg" | "jpeg" | "npy")
+}
+
+/// Width and height of an image file, from its header.
+pub fn image_size(path: &Path) -> Result<(usize, usize)> {
+    if path.extension().is_some_and(|e| e == "npy") {
+        let image = read_npy(path)?;
+        return Ok((image.width, image.height));
+    }
+    let (w, h) = image::image_dimensions(path).map_err(|e| Error(format!("{}: {e}", show(path))))?;
+    Ok((w as usize, h as usize))
+}
+
+/// Frames `wanted` (in that order) of `view`, each checked against the
+/// camera's size. Errors: a frame out of range, no `ffmpeg`, a file that
+/// does not decode, an image of another size.
+pub fn read(view: &View, wanted: &[usize]) -> Result<Vec<Image>> {
+    let count = view.frames.count();
+    if let Some(&n) = wanted.iter().find(|&&n| n >= count) {
+        bail!("camera {}: frame {n} is out of range (it has frames 0..{})", view.name, count.saturating_sub(1));
+    }
+    let (width, height) = (view.camera.width, view.camera.height);
+    let images = match &view.frames {
+        Frames::Video { path, .. } => decode_video(path, wanted, width, height)?,
+        Frames::Images(paths) => wanted.iter().map(|&n| read_image(&paths[n])).collect::<Result<Vec<_>>>()?,
+    };
+    for image in &images {
+        if (image.width, image.height) != (width, height) {
+            bail!(
+                "camera {}: its frames are {}x{} but the calibration says {width}x{height} (width x height)",
+                view.name,
+                image.width,
+                image.height
+            );
+        }
+    }
+    Ok(images)
+}
+
+/// Pictures `wanted` of the video at `path`, `width` x `height`, in one
+/// pass of `ffmpeg` (its `select` filter keeps them in stream order).
+fn decode_video(path: &Path, wanted: &[usize], width: usize, height: usize) -> Result<Vec<Image>> {
+    if wanted.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut sorted = wanted.to_vec();
+    sorted.sort_unstable();
+    sorted.dedup();
+    let select: Vec<String> = sorted.iter().map(|n| format!("eq(n\\,{n})")).collect();
+    let child = Command::new("ffmpeg")
+        .args(["-nostdin", "-v", "error", "-i"])
+        .arg(path)
+        .args(["-vf", &format!("select={}", select.join("+")), "-vsync", "passthrough"])
+        .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "pipe:1"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn();
+    let mut child = match child {
+        Ok(child) => child,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!("{}: {NO_FFMPEG}", show(path)),
+        Err(e) => bail!("{}: cannot run ffmpeg: {e}", show(path)),
+    };
+    let frame_bytes = width * height * 3;
+    let mut bytes = Vec::with_capacity(frame_bytes * sorted.len());
+    let stdout = child.stdout.take().ok_or_else(|| Error("ffmpeg gave no output".into()))?;
+    // Never take more than the frames asked for (+1 byte to notice a size mismatch).
+    stdout.take((frame_bytes * sorted.len() + 1) as u64).read_to_end(&mut bytes)?;
+    let mut stderr = String::new();
+    if let Some(mut e) = child.stderr.take() {
+        e.read_to_string(&mut stderr).ok();
+    }
+    let status = child.wait()?;
+    if !status.success() || bytes.len() != frame_bytes * sorted.len() {
+        let what = stderr.lines().next().unwrap_or("its output is not the frames asked for").to_string();
+        bail!(
+            "{}: ffmpeg could not decode frames {:?} at {width}x{height}: {}",
+            show(path),
+            sorted,
+            crate::error::shorten(&what)
+        );
+    }
+    let decoded: Vec<Image> = bytes
+        .chunks_exact(frame_bytes)
+        .map(|frame| Image {
+            width,
+            height,
+            data: frame.chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0)).collect(),
+        })
+        .collect();
+    Ok(wanted.iter().map(|n| decoded[sorted.binary_search(n).unwrap_or(0)].clone()).collect())
+}
+
+/// One image file as grey code value / full scale.
+fn read_image(path: &Path) -> Result<Image> {
+    if path.extension().is_some_and(|e| e == "npy") {
+        return read_npy(path);
+    }
+    let image = image::open(path).map_err(|e| Error(format!("{}: {e}", show(path))))?;
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    // Exact code values for integer images: code / full scale in f64.
+    let grey = |p: [f64; 3], full: f64| (p[0] + p[1] + p[2]) / (3.0 * full);
+    let color = image.color();
+    let data: Vec<f64> = match color.bytes_per_pixel() / color.channel_count() {
+        1 => image.to_rgb8().pixels().map(|p| grey(p.0.map(f64::from), 255.0)).collect(),
+        2 => image.to_rgb16().pixels().map(|p| grey(p.0.map(f64::from), 65535.0)).collect(),
+        _ => image.to_rgb32f().pixels().map(|p| grey(p.0.map(f64::from), 1.0)).collect(),
+    };
+    if data.iter().any(|v| !v.is_finite()) {
+        bail!("{}: holds NaN or infinity", show(path));
+    }
+    Ok(Image { width, height, data })
+}
+
+/// A `.npy` frame: (H, W) or (H, W, C), channels averaged.
+fn read_npy(path: &Path) -> Result<Image> {
+    let a = npy::read(path, "frame")?;
+    let (height, width, channels) = match a.shape[..] {
+        [h, w] => (h, w, 1),
+        [h, w, c] if c > 0 => (h, w, c),
+        _ => bail!("{}: shape {:?} is not (H, W) or (H, W, C)", show(path), a.shape),
+    };
+    let scale = if a.element == npy::Element::U8 { 255.0 } else { 1.0 };
+    let data: Vec<f64> =
+        a.data.chunks_exact(channels).map(|p| p.iter().sum::<f64>() / (channels as f64 * scale)).collect();
+    if data.iter().any(|v| !v.is_finite()) {
+        bail!("{}: holds NaN or infinity", show(path));
+    }
+    Ok(Image { width, height, data })
+}

@@ -1,0 +1,83 @@
+//! Real captures: calibrated cameras, their frames, and the box the smoke
+//! is in, read as other projects distribute them.
+//!
+//! - [`calibration`] reads the camera calibration: PINF/HyFluid's
+//!   `info.json` or a NeRF-style `transforms.json`.
+//! - [`frames`] decodes frames from videos (through the `ffmpeg` program)
+//!   or image files into images of code value / full scale.
+//! - [`observe`] gives the frames at a working resolution and the real
+//!   silhouettes a visual hull is carved from ([`crate::recon::hull::carve`]).
+//! - [`protocol`] is the field's held-out-view evaluation: area
+//!   downsampling, a fixed crop, PSNR and relative RMSE.
+
+pub mod calibration;
+pub mod frames;
+pub mod observe;
+pub mod protocol;
+
+use crate::math::Vec3;
+use crate::scene::Camera;
+use std::path::PathBuf;
+
+/// Where one camera's frames are.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Frames {
+    /// A video; frame `n` is its `n`-th decoded picture.
+    Video {
+        /// The video file.
+        path: PathBuf,
+        /// Its number of frames, as the calibration gives it.
+        count: usize,
+    },
+    /// One image file (PNG, JPEG or `.npy`) per frame, in frame order.
+    Images(Vec<PathBuf>),
+}
+
+impl Frames {
+    /// Number of frames.
+    pub fn count(&self) -> usize {
+        match self {
+            Frames::Video { count, .. } => *count,
+            Frames::Images(paths) => paths.len(),
+        }
+    }
+}
+
+/// One calibrated camera of a capture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    /// Its name: the file name of its video or first image, without extension.
+    pub name: String,
+    /// The camera at the frames' full resolution.
+    pub camera: Camera,
+    /// Its frames.
+    pub frames: Frames,
+    /// True for a camera the calibration sets aside for testing
+    /// (`test_videos` of an `info.json`); never fitted.
+    pub held_out: bool,
+}
+
+/// A capture: its cameras and, where the calibration gives it, the box the
+/// smoke is in (world units of the calibration).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Capture {
+    /// The cameras, training ones first, in file order.
+    pub views: Vec<View>,
+    /// Lower and upper corner of the smoke box, if the calibration has one.
+    pub smoke_box: Option<(Vec3, Vec3)>,
+}
+
+impl Capture {
+    /// Frames every camera has.
+    pub fn frame_count(&self) -> usize {
+        self.views.iter().map(|v| v.frames.count()).min().unwrap_or(0)
+    }
+
+    /// The view called `name`, or an error listing the names.
+    pub fn view(&self, name: &str) -> crate::Result<usize> {
+        self.views.iter().position(|v| v.name == name).ok_or_else(|| {
+            let names: Vec<&str> = self.views.iter().map(|v| v.name.as_str()).collect();
+            crate::Error(format!("the capture has no camera '{name}' (it has: {})", names.join(", ")))
+        })
+    }
+}

@@ -1,0 +1,248 @@
+//! Real captures in: calibrations of both forms, frames from images, `.npy`
+//! and videos, and the errors a bad capture gets. The data is made here:
+//! tiny images, and a tiny H.264 video when `ffmpeg` is installed (the test
+//! that needs it says that it skips when it is not).
+
+mod common;
+
+use common::temp_dir;
+use dualphoton::capture::{calibration, frames, protocol::Protocol, Frames};
+use dualphoton::io::npy;
+use dualphoton::math::Vec3;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// A camera-to-world matrix at `(x, 0, z)` looking at the origin (OpenGL: the camera looks along -column 2).
+fn looking_at_origin(x: f64, z: f64) -> Value {
+    let d = (x * x + z * z).sqrt();
+    let back = [x / d, 0.0, z / d];
+    let right = [back[2], 0.0, -back[0]];
+    json!([[right[0], 0.0, back[0], x], [0.0, 1.0, 0.0, 0.0], [right[2], 0.0, back[2], z], [0.0, 0.0, 0.0, 1.0]])
+}
+
+/// Writes a `w` x `h` grey PNG whose pixel `(x, y)` is `value(x, y)`, 8 or 16 bit.
+fn write_png(path: &Path, w: u32, h: u32, sixteen: bool, value: impl Fn(u32, u32) -> u16) {
+    if sixteen {
+        image::ImageBuffer::from_fn(w, h, |x, y| image::Luma([value(x, y)])).save(path).unwrap();
+    } else {
+        image::ImageBuffer::from_fn(w, h, |x, y| image::Luma([value(x, y) as u8])).save(path).unwrap();
+    }
+}
+
+#[test]
+fn a_transforms_json_reads_folders_of_images_of_every_kind() {
+    let dir = temp_dir("capture_transforms");
+    for (cam, sixteen) in [("cam_a", false), ("cam_b", true)] {
+        std::fs::create_dir_all(dir.join(cam)).unwrap();
+        for n in 0..3u16 {
+            write_png(&dir.join(cam).join(format!("{n:03}.png")), 6, 4, sixteen, |x, y| {
+                10 * n + x as u16 + 6 * y as u16
+            });
+        }
+    }
+    std::fs::create_dir_all(dir.join("cam_c")).unwrap();
+    for n in 0..3 {
+        let data: Vec<f64> = (0..24).map(|i| 0.01 * (i + n) as f64).collect();
+        npy::write_f32(&dir.join("cam_c").join(format!("{n}.npy")), &[4, 6], &data).unwrap();
+    }
+    let calib = json!({
+        "camera_angle_x": 0.8, "w": 6, "h": 4,
+        "frames": [
+            {"file_path": "cam_a", "transform_matrix": looking_at_origin(0.0, 2.0)},
+            {"file_path": "cam_b", "transform_matrix": looking_at_origin(2.0, 0.0), "fl_x": 7.0, "cx": 2.5},
+            {"file_path": "cam_c", "transform_matrix": looking_at_origin(-2.0, 0.0)},
+        ]
+    });
+    std::fs::write(dir.join("transforms.json"), calib.to_string()).unwrap();
+    let capture = calibration::load(&dir.join("transforms.json")).unwrap();
+    assert_eq!(capture.views.len(), 3);
+    assert_eq!((capture.frame_count(), capture.smoke_box), (3, None));
+    assert_eq!(capture.views[1].name, "cam_b");
+    // Every camera sees the origin; the one at the top-level angle at the image centre.
+    for v in &capture.views {
+        assert!(v.camera.project(&Vec3::zeros()).is_some(), "{}", v.name);
+    }
+    let (x, y) = capture.views[0].camera.project(&Vec3::zeros()).unwrap();
+    assert!((x - 3.0).abs() < 1e-9 && (y - 2.0).abs() < 1e-9);
+    assert_eq!(capture.views[1].camera.intrinsics(), [7.0, 7.0, 2.5, 2.0]);
+
+    let a = frames::read(&capture.views[0], &[2, 0]).unwrap();
+    assert_eq!(a[0].data[7], (20.0 + 1.0 + 6.0) / 255.0);
+    assert_eq!(a[1].data[0], 0.0);
+    let b = frames::read(&capture.views[1], &[1]).unwrap();
+    assert_eq!(b[0].data[23], (10.0 + 5.0 + 18.0) / 65535.0);
+    let c = frames::read(&capture.views[2], &[2]).unwrap();
+    assert!((c[0].data[5] - 0.07).abs() < 1e-7);
+
+    let err = frames::read(&capture.views[0], &[3]).unwrap_err().0;
+    assert!(err.contains("frame 3 is out of range") && err.contains("0..2"), "{err}");
+}
+
+#[test]
+fn a_bad_capture_is_a_one_line_error_before_any_work() {
+    let dir = temp_dir("capture_errors");
+    write_png(&dir.join("one.png"), 6, 4, false, |_, _| 0);
+    let video = |file: &str, matrix: Value| json!({"file_name": file, "frame_num": 5, "camera_angle_x": 0.5, "camera_hw": [4, 6], "transform_matrix": matrix});
+    let cases: Vec<(&str, Value, &str)> = vec![
+        (
+            "missing video",
+            json!({"train_videos": [video("none.mp4", looking_at_origin(0.0, 2.0))]}),
+            "none.mp4 does not exist",
+        ),
+        ("no field", json!({"train_videos": [{"file_name": "one.png"}]}), "train_videos[0].frame_num: missing"),
+        ("neither form", json!({"cameras": []}), "neither train_videos"),
+        (
+            "not a rotation",
+            json!({"train_videos": [video("one.png", json!([[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 2], [0, 0, 0, 1]]))]}),
+            "not a rotation",
+        ),
+        (
+            "bad angle",
+            json!({"frames": [{"file_path": "one.png", "camera_angle_x": 4.0, "transform_matrix": looking_at_origin(0.0, 2.0)}]}),
+            "(0, pi)",
+        ),
+        (
+            "no intrinsics",
+            json!({"frames": [{"file_path": "one.png", "transform_matrix": looking_at_origin(0.0, 2.0)}]}),
+            "no intrinsics",
+        ),
+        ("no cameras", json!({"frames": []}), "no cameras"),
+    ];
+    for (name, calib, expected) in cases {
+        std::fs::write(dir.join("calib.json"), calib.to_string()).unwrap();
+        let err = calibration::load(&dir.join("calib.json")).unwrap_err().0;
+        assert!(err.contains(expected) && !err.contains('\n'), "{name}: {err}");
+    }
+    // An image of another size than the calibration says.
+    let calib = json!({"w": 8, "h": 4, "camera_angle_x": 0.5,
+        "frames": [{"file_path": "one.png", "transform_matrix": looking_at_origin(0.0, 2.0)}]});
+    std::fs::write(dir.join("calib.json"), calib.to_string()).unwrap();
+    let capture = calibration::load(&dir.join("calib.json")).unwrap();
+    let err = frames::read(&capture.views[0], &[0]).unwrap_err().0;
+    assert!(err.contains("6x4") && err.contains("8x4"), "{err}");
+}
+
+#[test]
+fn video_frames_decode_in_order_through_ffmpeg() {
+    if !frames::have_ffmpeg() {
+        eprintln!("SKIPPED video_frames_decode_in_order_through_ffmpeg: ffmpeg is not installed");
+        return;
+    }
+    let dir = temp_dir("capture_video");
+    // Eight flat grey frames, 40 + 20 n, coded with B-frames (x264's default).
+    for n in 0..8u16 {
+        write_png(&dir.join(format!("f{n}.png")), 64, 48, false, |_, _| 40 + 20 * n);
+    }
+    let status = std::process::Command::new("ffmpeg")
+        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
+        .arg(dir.join("f%d.png"))
+        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
+        .arg(dir.join("cam.mp4"))
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let calib = json!({
+        "train_videos": [{"file_name": "cam.mp4", "frame_num": 8, "camera_angle_x": 0.5, "camera_hw": [48, 64],
+                          "transform_matrix": looking_at_origin(0.0, 2.0)}],
+        "test_videos": [{"file_name": "cam.mp4", "frame_num": 8, "camera_angle_x": 0.5, "camera_hw": [48, 64],
+                         "transform_matrix": looking_at_origin(2.0, 0.0)}],
+        "voxel_matrix": [[1, 0, 0, -0.5], [0, 1, 0, -0.5], [0, 0, 1, -0.5], [0, 0, 0, 1]],
+        "voxel_scale": [1.0, 1.0, 1.0],
+    });
+    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
+    let capture = calibration::load(&dir.join("info.json")).unwrap();
+    assert_eq!(capture.smoke_box, Some((Vec3::from_element(-0.5), Vec3::from_element(0.5))));
+    assert!(!capture.views[0].held_out && capture.views[1].held_out);
+    assert!(matches!(capture.views[0].frames, Frames::Video { count: 8, .. }));
+    let got = frames::read(&capture.views[0], &[5, 1, 7, 5]).unwrap();
+    for (image, n) in got.iter().zip([5.0, 1.0, 7.0, 5.0]) {
+        let mean = image.data.iter().sum::<f64>() / image.data.len() as f64 * 255.0;
+        // Limited-range video stretched back to full range: within 2 codes.
+        assert!((mean - (40.0 + 20.0 * n)).abs() < 2.0, "frame {n}: mean code {mean}");
+    }
+    let err = frames::read(&capture.views[0], &[8]).unwrap_err().0;
+    assert!(err.contains("frame 8 is out of range"), "{err}");
+    // A calibration that claims more frames than the video has.
+    let mut view = capture.views[0].clone();
+    view.frames = Frames::Video { path: dir.join("cam.mp4"), count: 20 };
+    let err = frames::read(&view, &[12]).unwrap_err().0;
+    assert!(err.contains("could not decode frames [12]"), "{err}");
+}
+
+#[test]
+fn the_protocol_scores_black_as_its_share_of_the_crop() {
+    // A 1080x1920 truth that is 0.5 on 50 of the crop's 495 half-resolution columns, black elsewhere.
+    let mut truth = dualphoton::image::Image::zeros(1080, 1920);
+    for y in 180..1920 {
+        for x in 90..190 {
+            truth.data[y * 1080 + x] = 0.5;
+        }
+    }
+    let black = dualphoton::image::Image::zeros(1080, 1920);
+    let s = Protocol::for_size(1080, 1920).score(&black, &truth);
+    assert!((s.psnr.unwrap() - -10.0 * (50.0 / 495.0 * 0.25f64).log10()).abs() < 1e-9, "{s:?}");
+    assert_eq!(s.rel_rmse, Some(1.0));
+}
+
+/// Encodes `frames` flat grey frames of `code` as `dir/name.mp4` (64x48, H.264).
+fn flat_video(dir: &Path, name: &str, frames: u16, code: u16) {
+    for n in 0..frames {
+        write_png(&dir.join(format!("{name}_{n}.png")), 64, 48, false, |_, _| code);
+    }
+    let status = std::process::Command::new("ffmpeg")
+        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
+        .arg(dir.join(format!("{name}_%d.png")))
+        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
+        .arg(dir.join(format!("{name}.mp4")))
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+#[test]
+fn experiment_real_scores_black_and_the_nearest_view() {
+    if !frames::have_ffmpeg() {
+        eprintln!("SKIPPED experiment_real_scores_black_and_the_nearest_view: ffmpeg is not installed");
+        return;
+    }
+    let dir = temp_dir("capture_experiment");
+    flat_video(&dir, "test", 3, 100);
+    flat_video(&dir, "near", 3, 80);
+    flat_video(&dir, "far", 3, 200);
+    let cam = |file: &str, x: f64, z: f64| json!({"file_name": file, "frame_num": 3, "camera_angle_x": 0.5, "camera_hw": [48, 64], "transform_matrix": looking_at_origin(x, z)});
+    let calib = json!({
+        "train_videos": [cam("far.mp4", 2.0, 0.0), cam("near.mp4", 1.0, 1.732)],
+        "test_videos": [cam("test.mp4", 0.0, 2.0)],
+    });
+    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
+    let exe = env!("CARGO_BIN_EXE_experiment_real");
+    let out = dir.join("out");
+    let run = |frames: &str| {
+        std::process::Command::new(exe)
+            .arg("--data")
+            .arg(&dir)
+            .args(["--frames", frames])
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let bad = run("0,3");
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("--frames: frame 3 is out of range"), "{err}");
+    assert!(!out.exists(), "an invalid option is refused before any output");
+    let ok = run("0,2");
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let csv = std::fs::read_to_string(out.join("baselines.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    for row in &rows {
+        let psnr: f64 = row[2].parse().unwrap();
+        // Black against 100/255: -20 log10(100/255); the nearest view (80) against it: -20 log10(20/255).
+        let expected =
+            if row[1] == "all black" { -20.0 * (100.0f64 / 255.0).log10() } else { -20.0 * (20.0f64 / 255.0).log10() };
+        assert!((psnr - expected).abs() < 0.8, "{row:?}: expected {expected}");
+        assert!(row[1] == "all black" || row[1] == "training view near as is", "{row:?}");
+    }
+    assert!(out.join("manifest.json").exists() && out.join("summary.md").exists());
+}
