@@ -90,6 +90,11 @@ fn a_bad_capture_is_a_one_line_error_before_any_work() {
             "none.mp4 does not exist",
         ),
         ("no field", json!({"train_videos": [{"file_name": "one.png"}]}), "train_videos[0].frame_num: missing"),
+        (
+            "no frames",
+            json!({"train_videos": [{"file_name": "one.png", "frame_num": 0, "camera_hw": [4, 6]}]}),
+            "frame_num: 0",
+        ),
         ("neither form", json!({"cameras": []}), "neither train_videos"),
         (
             "not a rotation",

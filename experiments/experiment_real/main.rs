@@ -56,7 +56,10 @@ fn run(args: Args) -> Result<()> {
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
     let count = capture.frame_count();
     if let Some(n) = args.frames.iter().find(|&&n| n >= count) {
-        return Err(Error(format!("--frames: frame {n} is out of range (the capture has frames 0..{})", count - 1)));
+        return Err(Error(format!(
+            "--frames: frame {n} is out of range (the capture has frames 0..{})",
+            count.saturating_sub(1)
+        )));
     }
     if !frames::have_ffmpeg()
         && capture.views.iter().any(|v| matches!(v.frames, dualphoton::capture::Frames::Video { .. }))

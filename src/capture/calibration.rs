@@ -71,6 +71,9 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
             let v = Fields::lenient(item, &path)?;
             let file: String = v.required("file_name")?;
             let count: usize = v.required("frame_num")?;
+            if count == 0 {
+                bail!("{}: 0; a video has at least one frame", v.name("frame_num"));
+            }
             let [height, width]: [usize; 2] = v.required("camera_hw")?;
             let angle: f64 = v.required("camera_angle_x")?;
             let lens = lens_from_angle(angle, width, height, &v.name("camera_angle_x"))?;
