@@ -19,6 +19,12 @@ impl Image {
         Image { width, height, data: vec![0.0; width * height] }
     }
 
+    /// The image averaged over `factor x factor`-pixel blocks (area
+    /// downsampling; partial blocks at the right and bottom edges dropped).
+    pub fn downsample(&self, factor: usize) -> Image {
+        Image { width: self.width / factor, height: self.height / factor, data: self.block_means(factor) }
+    }
+
     /// Means over `b x b`-pixel blocks (partial blocks at the edges dropped).
     pub fn block_means(&self, b: usize) -> Vec<f64> {
         let (bw, bh) = (self.width / b, self.height / b);

@@ -77,13 +77,7 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
             let [height, width]: [usize; 2] = v.required("camera_hw")?;
             let angle: f64 = v.required("camera_angle_x")?;
             let lens = lens_from_angle(angle, width, height, &v.name("camera_angle_x"))?;
-            let camera = camera_from_matrix(
-                &v.required::<Vec<[f64; 4]>>("transform_matrix")?,
-                lens,
-                width,
-                height,
-                &v.name("transform_matrix"),
-            )?;
+            let camera = posed(&v, lens, width, height)?;
             let video = existing(dir, &file, &v.name("file_name"))?;
             views.push(View { name: stem(&video), camera, frames: Frames::Video { path: video, count }, held_out });
         }
@@ -103,10 +97,8 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
         let f = Fields::lenient(item, &path)?;
         let source = existing(dir, &f.required::<String>("file_path")?, &f.name("file_path"))?;
         let frames = frame_source(&source, &f.name("file_path"))?;
-        // Per-camera intrinsics override the shared ones.
-        let pick = |key: &str| -> Result<Option<f64>> { Ok(f.optional(key)?.or(top.optional(key)?)) };
-        let size = |key: &str| -> Result<Option<usize>> { Ok(f.optional(key)?.or(top.optional(key)?)) };
-        let (width, height) = match (size("w")?, size("h")?) {
+        let pick = |key: &str| inherited::<f64>(&f, top, key);
+        let (width, height) = match (inherited(&f, top, "w")?, inherited(&f, top, "h")?) {
             (Some(w), Some(h)) => (w, h),
             _ => {
                 image_size(&frames).ok_or_else(|| Error(format!("{path}: give w and h (the image size in pixels)")))?
@@ -122,13 +114,7 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
             (None, Some(angle)) => lens_from_angle(angle, width, height, &format!("{path}.camera_angle_x"))?,
             (None, None) => bail!("{path}: no intrinsics: give camera_angle_x or fl_x (here or at the top)"),
         };
-        let camera = camera_from_matrix(
-            &f.required::<Vec<[f64; 4]>>("transform_matrix")?,
-            lens,
-            width,
-            height,
-            &f.name("transform_matrix"),
-        )?;
+        let camera = posed(&f, lens, width, height)?;
         views.push(View { name: stem(&source), camera, frames, held_out: false });
     }
     Ok(Capture { views, smoke_box: None })
@@ -145,6 +131,18 @@ fn lens_from_angle(angle: f64, width: usize, height: usize, field: &str) -> Resu
     }
     let f = 0.5 * width as f64 / (0.5 * angle).tan();
     Ok(Lens::Pinhole { fx: f, fy: f, cx: 0.5 * width as f64, cy: 0.5 * height as f64 })
+}
+
+/// A camera's own value of `key`, else the one at the top (per-camera
+/// intrinsics override the shared ones).
+fn inherited<T: serde::de::DeserializeOwned>(camera: &Fields, top: &Fields, key: &str) -> Result<Option<T>> {
+    Ok(camera.optional(key)?.or(top.optional(key)?))
+}
+
+/// The camera posed by the `transform_matrix` of `fields`.
+fn posed(fields: &Fields, lens: Lens, width: usize, height: usize) -> Result<Camera> {
+    let matrix: Vec<[f64; 4]> = fields.required("transform_matrix")?;
+    camera_from_matrix(&matrix, lens, width, height, &fields.name("transform_matrix"))
 }
 
 /// The camera whose camera-to-world matrix (OpenGL convention) is `m`.

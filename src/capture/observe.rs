@@ -42,17 +42,12 @@ pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usi
     for &v in views {
         let view = &capture.views[v];
         for (per_frame, full) in images.iter_mut().zip(frames::read(view, wanted)?) {
-            per_frame.push(downsample(&full, factor));
+            per_frame.push(full.downsample(factor));
         }
         cameras.push(view.camera.downsample(factor));
     }
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
     Ok(Observed { cameras, images, names })
-}
-
-/// `image` averaged over `factor` x `factor` blocks.
-pub fn downsample(image: &Image, factor: usize) -> Image {
-    Image { width: image.width / factor, height: image.height / factor, data: image.block_means(factor) }
 }
 
 /// The silhouette of a real frame (code value / 255) at 1/`factor` of the

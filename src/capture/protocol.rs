@@ -33,12 +33,7 @@ impl Protocol {
 
     /// `image` downsampled and cropped, as the metrics see it.
     pub fn view(&self, image: &Image) -> Image {
-        let small = Image {
-            width: image.width / self.factor,
-            height: image.height / self.factor,
-            data: image.block_means(self.factor),
-        };
-        crop(&small, self.crop)
+        crop(&image.downsample(self.factor), self.crop)
     }
 
     /// PSNR and relative RMSE of `prediction` against `truth` (both at full
