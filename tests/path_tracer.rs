@@ -16,7 +16,7 @@ use std::f64::consts::PI;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 fn medium(sigma_t_scale: f64, albedo: f64, g: f64, max_order: u32) -> Medium {
-    Medium { sigma_t_scale, albedo, g, max_order }
+    Medium { sigma_t_scale, albedo, g, max_order, emission: 0.0 }
 }
 
 fn light(x: f64, y: f64, z: f64, intensity: f64) -> Light {

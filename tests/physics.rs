@@ -147,3 +147,24 @@ fn single_scattering_matches_quadrature_within_one_percent() {
         assert!((ours - reference).abs() < 0.01 * reference, "rho {rho}, g {g}: {ours} vs quadrature {reference}");
     }
 }
+
+#[test]
+fn emission_without_lights_is_emission_times_one_minus_transmittance() {
+    // A homogeneous cube seen head-on through a narrow pixel: every ray
+    // crosses the whole edge, 1 unit, so the image is e (1 - exp(-sigma_t)).
+    for (rho, emission) in [(0.01, 1.0), (0.1, 0.3), (2.0, 5.0)] {
+        let cam = common::camera(2.5, 0.01, 1);
+        let mut medium = common::medium(0.9, 0.5, 3);
+        medium.emission = emission;
+        let mut scene = common::scene(common::homogeneous(8, rho), medium, vec![], vec![cam]);
+        scene.render.spp = 4;
+        let exact = emission * (1.0 - (-20.0 * rho).exp());
+        let ours = render_photon(&scene).images[0].data[0];
+        assert!((ours - exact).abs() < 1e-7 * exact, "rho {rho}: photon renderer {ours} vs {exact}");
+        let opts = dualphoton::render::path::PathOptions { spp: 20_000, seed: 5, ..Default::default() };
+        let path = dualphoton::render::path::render_path(&scene, &opts).radiance[0].data[0];
+        // Each path adds e or 0 (a Bernoulli of mean 1 - T): 5 standard errors.
+        let se = emission * (exact / emission * (1.0 - exact / emission) / 20_000.0).sqrt();
+        assert!((path - exact).abs() < 5.0 * se + 1e-12, "rho {rho}: path tracer {path} vs {exact} (se {se})");
+    }
+}

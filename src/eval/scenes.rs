@@ -59,7 +59,7 @@ pub fn look_at_origin(position: Vec3, res: usize, fov_y_deg: f64) -> Camera {
 
 /// A medium of extinction scale 20 (a density of 0.05 is one mean free path per unit).
 pub fn medium(albedo: f64, g: f64, max_order: u32) -> Medium {
-    Medium { sigma_t_scale: 20.0, albedo, g, max_order }
+    Medium { sigma_t_scale: 20.0, albedo, g, max_order, emission: 0.0 }
 }
 
 /// A scene of `density` with the default render settings.

@@ -1,7 +1,8 @@
 //! The camera-ray integral `L = ∫ T(0,t) sigma_s(x_t) L_s(x_t, -w) dt`
 //! (docs/DESIGN.md §2) by ray marching: per step, single scattering towards every
 //! light, its transmittance read from the light-depth grids (or marched),
-//! plus the photon estimate of the higher orders read from a grid. Generic
+//! the medium's emission, and the photon estimate of the higher orders read
+//! from a grid. Generic
 //! over `R: Real`: the density carries derivatives, the step placement does not.
 
 use super::light_depth::Depths;
@@ -111,6 +112,9 @@ impl<R: Real> CameraRays<'_, R> {
                     // Photons estimate sigma_t L (per unit length) directly.
                     radiance += within * m;
                 }
+            }
+            if self.medium.emission > 0.0 && !sigma_t.is_exact_zero() {
+                radiance += within * sigma_t * self.medium.emission;
             }
             if !sigma_t.is_exact_zero() && self.medium.albedo > 0.0 {
                 let mut single = R::cst(0.0);

@@ -172,6 +172,8 @@ struct Tracer<'a> {
     scale: f64,
     albedo: f64,
     g: f64,
+    /// The medium's emission per unit extinction, added at the first collision.
+    emission: f64,
     /// Lights of non-zero intensity: `(position, intensity)`.
     lights: Vec<(Vec3, f64)>,
     /// The grid's box clipped to the blocks of non-zero bound: outside it
@@ -183,15 +185,17 @@ struct Tracer<'a> {
 }
 
 impl<'a> Tracer<'a> {
-    /// `None` when every image is black for sure (no medium, no light,
-    /// albedo 0, no order to count, no samples): such renders cost nothing.
+    /// `None` when every image is black for sure (no medium, neither a
+    /// light with albedo > 0 nor emission, no order to count, no samples): such renders cost nothing.
     fn new(scene: &'a Scene, opts: &PathOptions) -> Option<Self> {
         let m = &scene.medium;
         let max_order = opts.max_order.unwrap_or(m.max_order);
         let min_order = opts.min_order.max(1);
         let lights: Vec<(Vec3, f64)> =
             scene.lights.iter().filter(|l| l.intensity > 0.0).map(|l| (l.position, l.intensity)).collect();
-        if opts.spp == 0 || lights.is_empty() || m.albedo <= 0.0 || m.sigma_t_scale <= 0.0 || min_order > max_order {
+        let lit = !lights.is_empty() && m.albedo > 0.0;
+        let emits = m.emission > 0.0 && min_order == 1;
+        if opts.spp == 0 || !(lit || emits) || m.sigma_t_scale <= 0.0 || min_order > max_order {
             return None;
         }
         let majorant = Majorant::build(&scene.density, MAJORANT_BLOCK);
@@ -203,6 +207,7 @@ impl<'a> Tracer<'a> {
             scale: m.sigma_t_scale,
             albedo: m.albedo,
             g: m.g,
+            emission: m.emission,
             lights,
             lo,
             hi,
@@ -232,6 +237,10 @@ impl<'a> Tracer<'a> {
         for n in 1..=self.max_order {
             let Some(t) = self.free_flight(&ray, rng) else { break };
             let x = ray.at(t);
+            if n == 1 && self.min_order == 1 {
+                // The camera ray's emission `T sigma_t e`: the collision's pdf is `T sigma_t`.
+                radiance += self.emission;
+            }
             // Delta tracking samples real collisions with pdf T sigma_t, so
             // the collision's weight is sigma_s / sigma_t.
             weight *= self.albedo;
@@ -378,7 +387,7 @@ mod tests {
         // Unit box, `n^3` voxels.
         let scene = |n: usize, data: Vec<f64>, sigma_t_scale, albedo, g| Scene {
             density: Grid::new(Vec3::from_element(-0.5), Vec3::from_element(0.5), [n, n, n], data),
-            medium: Medium { sigma_t_scale, albedo, g, max_order: 4 },
+            medium: Medium { sigma_t_scale, albedo, g, max_order: 4, emission: 0.0 },
             lights: lights.clone(),
             cameras: vec![cam.clone()],
             render: RenderSettings::default(),

@@ -4,7 +4,7 @@
 //! A scene is a JSON object with sections `volume` (`bbox_min`, `bbox_max`,
 //! `density`: a `.npy` path relative to the scene file holding a float32 or
 //! float64 array of shape (Z, Y, X), `sigma_t_scale`, `albedo`, `g`,
-//! `max_order`), `lights` (`position`, `intensity`), `cameras` (`position`,
+//! `max_order`, optional `emission`), `lights` (`position`, `intensity`), `cameras` (`position`,
 //! `look_at`, optional `up`, `width`, `height`, and either `fov_y_deg` or
 //! the intrinsics `fx`, `fy`, `cx`, `cy` in pixels) and an optional
 //! `render` (`photons`, `kernel_radius`, `step`, `seed`, `spp`, `path_spp`,
@@ -38,6 +38,13 @@ struct VolumeFile {
     albedo: f64,
     g: f64,
     max_order: u32,
+    #[serde(skip_serializing_if = "is_zero")]
+    emission: f64,
+}
+
+/// An emission of 0 is not written: scenes without one read as before.
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 #[derive(Serialize)]
@@ -100,7 +107,7 @@ struct SceneFile {
 /// The scene file's sections from its JSON; errors name the field.
 fn scene_file(root: &Value) -> Result<SceneFile> {
     let top = Fields::new(root, "", &["volume", "lights", "cameras", "render"])?;
-    let known = ["bbox_min", "bbox_max", "density", "sigma_t_scale", "albedo", "g", "max_order"];
+    let known = ["bbox_min", "bbox_max", "density", "sigma_t_scale", "albedo", "g", "max_order", "emission"];
     let v = Fields::new(top.value("volume")?, "volume", &known)?;
     let volume = VolumeFile {
         bbox_min: v.required("bbox_min")?,
@@ -110,6 +117,7 @@ fn scene_file(root: &Value) -> Result<SceneFile> {
         albedo: v.required("albedo")?,
         g: v.required("g")?,
         max_order: v.required("max_order")?,
+        emission: v.optional("emission")?.unwrap_or(0.0),
     };
     let lights = top
         .list("lights")?
@@ -208,6 +216,7 @@ pub fn load(path: &Path) -> Result<Scene> {
         albedo: file.volume.albedo,
         g: file.volume.g,
         max_order: file.volume.max_order,
+        emission: file.volume.emission,
     };
     let lights = file
         .lights
@@ -269,6 +278,7 @@ pub fn save(scene: &Scene, dir: &Path, name: &str) -> Result<()> {
             albedo: scene.medium.albedo,
             g: scene.medium.g,
             max_order: scene.medium.max_order,
+            emission: scene.medium.emission,
         },
         lights: scene.lights.iter().map(|l| LightFile { position: arr(&l.position), intensity: l.intensity }).collect(),
         cameras: scene

@@ -24,6 +24,13 @@ pub struct Medium {
     pub g: f64,
     /// Most scattering events on a path; 1 = single scattering only.
     pub max_order: u32,
+    /// Radiance per unit extinction that every point sends towards the
+    /// camera whatever the lights: a camera ray gains `sigma_t * emission`
+    /// per unit length (attenuated like the rest), so without lights the
+    /// image is `emission * (1 - T)`. It is the emission-absorption image
+    /// model, and in a lit scene an ambient light scattered once without
+    /// shadowing. 0 (the default): none.
+    pub emission: f64,
 }
 
 /// An isotropic point light.

@@ -28,7 +28,7 @@ pub fn on_circle(r: f64, deg: f64) -> Vec3 {
 
 /// The paper's medium: g = 0.9, albedo 0.9, sigma_t_scale 20, up to 3rd order.
 pub fn paper_medium() -> Medium {
-    Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.9, max_order: 3 }
+    Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.9, max_order: 3, emission: 0.0 }
 }
 
 /// The paper's five cameras with `res x res` images.

@@ -58,6 +58,9 @@ pub fn validate(scene: &Scene) -> Result<()> {
     if m.g.is_nan() || m.g.abs() >= 1.0 {
         bail!("volume.g: {} must be in (-1, 1)", m.g);
     }
+    if !(m.emission.is_finite() && (0.0..=MAX_INTENSITY).contains(&m.emission)) {
+        bail!("volume.emission: {} must be in [0, {MAX_INTENSITY:e}]", m.emission);
+    }
     if m.max_order == 0 || m.max_order > 64 {
         bail!("volume.max_order: {} must be in 1..=64", m.max_order);
     }
@@ -278,7 +281,7 @@ mod tests {
         };
         Scene {
             density,
-            medium: Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.6, max_order: 3 },
+            medium: Medium { sigma_t_scale: 20.0, albedo: 0.9, g: 0.6, max_order: 3, emission: 0.0 },
             lights: vec![Light { position: Vec3::new(2.0, 0.0, 2.0), intensity: 10.0 }],
             cameras: vec![camera],
             render: RenderSettings::default(),
