@@ -10,14 +10,18 @@
 //! Writes `results/scalarflow_real/{baselines.csv, summary.md, manifest.json}`.
 //! The capture is read from `--data` (never copied into the repository).
 
+mod models;
+
 use clap::Parser;
+use dualphoton::capture::fit::{FitSettings, ImageModel};
+use dualphoton::capture::frame::{self, Roles};
 use dualphoton::capture::{calibration, frames, protocol::Protocol, Capture};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Parser, Serialize)]
 #[command(about = "Held-out-view scores on a real capture (ScalarFlow's, as PINF and HyFluid distribute it)")]
@@ -31,6 +35,15 @@ struct Args {
     /// The held-out camera (default: the calibration's test camera).
     #[arg(long)]
     held_out: Option<String>,
+    /// Image models fitted (none: the baselines only).
+    #[arg(long, value_delimiter = ',', default_value = "multiple,single,emission-absorption")]
+    models: Vec<ImageModel>,
+    /// Fit settings (JSON; fields not given keep their defaults), for studies.
+    #[arg(long)]
+    fit_settings: Option<PathBuf>,
+    /// Cameras left out of everything (to study settings on training cameras alone).
+    #[arg(long, value_delimiter = ',')]
+    drop: Vec<String>,
     /// Output directory.
     #[arg(long, default_value = "results/scalarflow_real")]
     out: PathBuf,
@@ -52,20 +65,21 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> Result<()> {
-    let capture = calibration::load(&calibration_path(&args.data))?;
+    let capture = calibration::load(&calibration::locate(&args.data))?;
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
-    let count = capture.frame_count();
-    if let Some(n) = args.frames.iter().find(|&&n| n >= count) {
-        return Err(Error(format!(
-            "--frames: frame {n} is out of range (the capture has frames 0..{})",
-            count.saturating_sub(1)
-        )));
-    }
-    if !frames::have_ffmpeg()
-        && capture.views.iter().any(|v| matches!(v.frames, dualphoton::capture::Frames::Video { .. }))
-    {
-        return Err(Error(frames::NO_FFMPEG.into()));
-    }
+    let fit_settings = match &args.fit_settings {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?;
+            serde_json::from_str::<FitSettings>(&text).map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?
+        }
+        None => FitSettings::default(),
+    };
+    let dropped = args.drop.iter().map(|name| capture.view(name)).collect::<Result<Vec<usize>>>()?;
+    let training: Vec<usize> = (0..capture.views.len())
+        .filter(|&v| v != held_out && !capture.views[v].held_out && !dropped.contains(&v))
+        .collect();
+    let roles = Roles { training, held_out: vec![held_out] };
+    frame::check(&capture, &roles, &args.frames, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
     let test = &capture.views[held_out];
@@ -84,21 +98,10 @@ fn run(args: Args) -> Result<()> {
     }
     write_rows(&run.path("baselines.csv"), &rows)?;
     std::fs::write(run.path("summary.md"), summary(&rows, &test.name))?;
-    run.write_manifest(&args)
-}
-
-/// `data` itself if it is a file, else the `info.json` or `transforms.json` in it.
-fn calibration_path(data: &Path) -> PathBuf {
-    if data.is_dir() {
-        let info = data.join("info.json");
-        if info.exists() {
-            info
-        } else {
-            data.join("transforms.json")
-        }
-    } else {
-        data.to_path_buf()
+    if !args.models.is_empty() {
+        models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"))?;
     }
+    run.write_manifest(&args)
 }
 
 /// The camera named `name`, else the calibration's one test camera.

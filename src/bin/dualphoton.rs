@@ -1,6 +1,7 @@
 //! The `dualphoton` command line: `render`, `grad`, `fit`, `judge` and `scene` (see `--help`).
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use dualphoton::capture::fit::{FitSettings, ImageModel};
 use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
@@ -152,11 +153,22 @@ struct GradArgs {
 #[derive(Args)]
 struct FitArgs {
     /// Scene file: cameras, lights, medium; its density only fixes the grid (shape and box).
-    #[arg(long)]
-    scene: PathBuf,
+    #[arg(long, required_unless_present = "capture")]
+    scene: Option<PathBuf>,
     /// Directory with one image per camera: cam0.npy, cam1.npy, ...
-    #[arg(long)]
-    images: PathBuf,
+    #[arg(long, required_unless_present = "capture")]
+    images: Option<PathBuf>,
+    /// A real capture instead of --scene and --images: its calibration (info.json or transforms.json, or
+    /// the folder holding it). Fits one --frame on its training cameras (lights, emission and density)
+    /// and renders its test cameras at full resolution (OUT/held_out.npy).
+    #[arg(long, conflicts_with_all = ["scene", "images", "held_out", "prior", "study"])]
+    capture: Option<PathBuf>,
+    /// The frame of --capture to fit.
+    #[arg(long, requires = "capture")]
+    frame: Option<usize>,
+    /// The image model of --capture's fit.
+    #[arg(long, value_enum, default_value = "multiple")]
+    model: ImageModel,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -296,8 +308,16 @@ fn grad(a: GradArgs) -> Result<()> {
 fn fit(a: FitArgs) -> Result<()> {
     // Every option is checked before any work.
     set_threads(a.threads)?;
+    if let Some(capture) = &a.capture {
+        let frame = a.frame.ok_or_else(|| Error::new("--frame: give the frame of --capture to fit"))?;
+        let settings = FitSettings { model: a.model, seed: a.seed, ..FitSettings::default() };
+        return dualphoton::capture::outputs::fit_and_write(capture, frame, &settings, &a.out);
+    }
     a.method.check()?;
-    let scene = file::load(&a.scene)?;
+    let (Some(scene), Some(images)) = (&a.scene, &a.images) else {
+        return Err(Error::new("fit: give --scene and --images, or --capture"));
+    };
+    let scene = file::load(scene)?;
     let n_train = training_cameras(&scene, a.held_out)?;
     let mut methods = Methods::default();
     if let Some(path) = &a.study {
@@ -313,7 +333,7 @@ fn fit(a: FitArgs) -> Result<()> {
     let judge = FitQualitySettings::default();
     let judge = FitQualitySettings { photons: a.judge_photons.unwrap_or(judge.photons), ..judge };
     file::check_photons(judge.photons, max_order, "--judge-photons")?;
-    let all = read_targets(&a.images, &scene, "--images")?;
+    let all = read_targets(images, &scene, "--images")?;
     let (targets, held) = all.split_at(n_train);
     let prior = choose_prior(a.prior.as_deref(), scene.density.shape)?;
     let method = if prior.is_some() { methods.prior } else { methods.paper }.seeded(a.seed);

@@ -36,6 +36,21 @@ const MAX_BYTES: u64 = 64 << 20;
 /// How far a rotation's columns may be from orthonormal.
 const ROTATION_TOLERANCE: f64 = 1e-3;
 
+/// `path` itself if it is a file, else the `info.json` (or, failing that,
+/// the `transforms.json`) in the folder `path`.
+pub fn locate(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        let info = path.join("info.json");
+        if info.exists() {
+            info
+        } else {
+            path.join("transforms.json")
+        }
+    } else {
+        path.to_path_buf()
+    }
+}
+
 /// The capture described by the calibration file at `path`. Errors name the
 /// file and the field: unreadable, neither form, a matrix that is not a
 /// rotation and translation, a field of view outside (0, pi), a frame source

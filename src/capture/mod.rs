@@ -7,11 +7,17 @@
 //!   or image files into images of code value / full scale.
 //! - [`observe`] gives the frames at a working resolution and the real
 //!   silhouettes a visual hull is carved from ([`crate::recon::hull::carve`]).
+//! - [`fit`] fits one frame: the density, the lights' intensities and the
+//!   emission, under one of three image models.
+//! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
 //!   downsampling, a fixed crop, PSNR and relative RMSE.
 
 pub mod calibration;
+pub mod fit;
+pub mod frame;
 pub mod frames;
+pub mod outputs;
 pub mod observe;
 pub mod protocol;
 

@@ -23,3 +23,13 @@ pub fn write_preview(path: &Path, width: usize, height: usize, values: &[f64], w
         .save(path)
         .map_err(|e| Error(format!("cannot write {}: {e}", path.display())))
 }
+
+/// Writes an image of code value / 255 (a real capture's units) as the 8-bit
+/// codes it stands for: no tone map, so it reads like the capture's frames.
+pub fn write_codes(path: &Path, width: usize, height: usize, values: &[f64]) -> Result<()> {
+    let codes = values.iter().map(|&v| (v * 255.0).round().clamp(0.0, 255.0) as u8).collect();
+    image::GrayImage::from_raw(width as u32, height as u32, codes)
+        .ok_or_else(|| Error::new("image size does not match its data"))?
+        .save(path)
+        .map_err(|e| Error(format!("cannot write {}: {e}", path.display())))
+}

@@ -1,0 +1,93 @@
+//! The image models' stage: every frame fitted on the training cameras under
+//! each model, the held-out camera rendered at the capture's resolution and
+//! scored. Rows are appended to `fits.csv` as they finish, and a rerun
+//! skips the (frame, model) pairs already there, so a long run resumes.
+
+use dualphoton::capture::fit::{FitSettings, ImageModel};
+use dualphoton::capture::frame::{fit_frame, read, Roles};
+use dualphoton::capture::Capture;
+use dualphoton::error::Result;
+use dualphoton::io::rows::{fmt, read_rows, write_rows};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One line of fits.csv.
+#[derive(Serialize, Deserialize, Clone)]
+pub struct FitResult {
+    pub frame: usize,
+    pub model: String,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    pub psnr_db: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    pub rel_rmse: Option<f64>,
+    /// Root mean squared error over the training cameras' pixels at the
+    /// working resolution (code value / 255), at the fit's last update.
+    #[serde(serialize_with = "fmt::f6")]
+    pub train_rmse: f64,
+    #[serde(serialize_with = "fmt::f1")]
+    pub fit_s: f64,
+    #[serde(serialize_with = "fmt::f1")]
+    pub render_s: f64,
+    /// The fitted lights' intensities (`;`-separated).
+    pub lights: String,
+    #[serde(serialize_with = "fmt::e6")]
+    pub emission: f64,
+}
+
+/// Fits every frame of `frames` under every model of `models`, scoring the
+/// one held-out camera of `roles`.
+pub fn run(
+    capture: &Capture,
+    roles: &Roles,
+    frames: &[usize],
+    models: &[ImageModel],
+    base: &FitSettings,
+    csv: &Path,
+) -> Result<Vec<FitResult>> {
+    let mut rows: Vec<FitResult> = if csv.exists() { read_rows(csv)? } else { Vec::new() };
+    let done = |rows: &[FitResult], frame: usize, model: ImageModel| rows.iter().any(|r| r.frame == frame && r.model == model.name());
+    let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
+    for images in read(capture, roles, &todo, base.factor)? {
+        let frame = images.frame;
+        let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
+        for model in pending {
+            let settings = FitSettings { model, ..base.clone() };
+            let result = fit_frame(capture, roles, &images, &settings, &mut |row| {
+                if row.update % 20 == 0 {
+                    eprintln!(
+                        "  frame {frame} {}: level {} update {} image rmse {:.5} ({:.0} s)",
+                        model.name(),
+                        row.level,
+                        row.update,
+                        row.image_mse.sqrt(),
+                        row.seconds
+                    );
+                }
+            })?;
+            let held = &result.held_out[0];
+            let fitted = &result.fit;
+            let row = FitResult {
+                frame,
+                model: model.name().into(),
+                psnr_db: held.score.psnr,
+                rel_rmse: held.score.rel_rmse,
+                train_rmse: fitted.log.last().map_or(0.0, |r| r.image_mse.sqrt()),
+                fit_s: fitted.seconds,
+                render_s: held.render_s,
+                lights: fitted.scene.lights.iter().map(|l| format!("{:.4e}", l.intensity)).collect::<Vec<_>>().join(";"),
+                emission: fitted.scene.medium.emission,
+            };
+            eprintln!(
+                "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} %, fit {:.0} s, render {:.0} s",
+                model.name(),
+                held.score.psnr.unwrap_or(f64::NAN),
+                100.0 * held.score.rel_rmse.unwrap_or(f64::NAN),
+                row.fit_s,
+                row.render_s
+            );
+            rows.push(row);
+            write_rows(csv, &rows)?;
+        }
+    }
+    Ok(rows)
+}

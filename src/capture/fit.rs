@@ -1,0 +1,482 @@
+//! Fitting one frame of a real capture: the density on a grid over the
+//! capture's smoke box, the lights' intensities and the medium's emission
+//! (the ambient term), from the training cameras' images at a working
+//! resolution.
+//!
+//! The image is linear in every light's intensity and in the emission, so
+//! for a given density they follow exactly from a non-negative least-squares
+//! fit to one render per light and one of the emission alone. The density
+//! follows the images' reverse-mode gradient (Adam, projected to >= 0,
+//! inside the visual hull of the real silhouettes) plus a smoothness term,
+//! coarse to fine. The camera response is one gain shared by every camera,
+//! which the lights and the emission absorb: the held-out camera's response
+//! is never fitted on it.
+//!
+//! Scale: only the product of density and light is seen where the smoke is
+//! thin; the density's level is fixed by the start (an optical depth of
+//! [`FitSettings::start_depth`] across the hull) and moves only where
+//! attenuation in the images asks for it.
+
+use super::observe::real_silhouette;
+use crate::error::{Error, Result};
+use crate::grad::loss::mse;
+use crate::grad::reverse::{reverse_gradient, Subset};
+use crate::image::Image;
+use crate::math::Vec3;
+use crate::optim::Adam;
+use crate::recon::hull::carve;
+use crate::render::frozen::Frozen;
+use crate::render::render_photon;
+use crate::scene::{Camera, Light, Medium, RenderSettings, Scene};
+use crate::volume::Grid;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// How the rendered image arises from the density.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImageModel {
+    /// The lights scattered up to [`MULTIPLE_ORDERS`] times, plus the ambient term.
+    Multiple,
+    /// The lights scattered once, plus the ambient term.
+    Single,
+    /// No lights: brightness proportional to density along the ray,
+    /// attenuated (the image model of PINF and HyFluid).
+    EmissionAbsorption,
+}
+
+/// Scattering orders of [`ImageModel::Multiple`].
+pub const MULTIPLE_ORDERS: u32 = 3;
+
+impl ImageModel {
+    /// Every model, in the order tables list them.
+    pub const ALL: [ImageModel; 3] = [ImageModel::Multiple, ImageModel::Single, ImageModel::EmissionAbsorption];
+
+    /// The name in files and tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImageModel::Multiple => "multiple",
+            ImageModel::Single => "single",
+            ImageModel::EmissionAbsorption => "emission-absorption",
+        }
+    }
+
+    /// Most scattering events on a light path.
+    fn max_order(self) -> u32 {
+        match self {
+            ImageModel::Multiple => MULTIPLE_ORDERS,
+            _ => 1,
+        }
+    }
+
+    /// Whether the model has lights.
+    fn lit(self) -> bool {
+        self != ImageModel::EmissionAbsorption
+    }
+}
+
+/// How a frame is fitted. Every default was chosen on frames and cameras
+/// other than those reported (docs/real_captures.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FitSettings {
+    /// The image model.
+    pub model: ImageModel,
+    /// Working resolution: 1/`factor` of the capture's, by area averaging.
+    pub factor: usize,
+    /// Voxels along the smoke box's longest edge at the finest level.
+    pub resolution: usize,
+    /// Adam updates per level, coarsest first; each level doubles the
+    /// resolution of the one before, the last is at `resolution`.
+    pub updates: Vec<usize>,
+    /// Adam step of the density, in units of the start's density.
+    pub lr: f64,
+    /// Weight of the smoothness term: the mean over neighbouring voxel
+    /// pairs of the squared difference of their optical depth across one
+    /// voxel, against the images' mean squared error.
+    pub smoothness: f64,
+    /// Optical depth across the hull's mean chord at the start.
+    pub start_depth: f64,
+    /// The lights and emission are fitted again every this many updates.
+    pub refit_every: usize,
+    /// Photons per render (multiple scattering only).
+    pub photons: u64,
+    /// Camera samples per pixel per update.
+    pub spp: u32,
+    /// Henyey-Greenstein asymmetry assumed for the fog.
+    pub g: f64,
+    /// Single-scattering albedo assumed for the fog (water droplets absorb almost nothing).
+    pub albedo: f64,
+    /// Seed of every render.
+    pub seed: u64,
+}
+
+impl Default for FitSettings {
+    fn default() -> Self {
+        FitSettings {
+            model: ImageModel::Multiple,
+            factor: 8,
+            resolution: 64,
+            updates: vec![40, 40, 40],
+            lr: 0.05,
+            smoothness: 0.1,
+            start_depth: 0.3,
+            refit_every: 10,
+            photons: 20_000,
+            spp: 1,
+            g: 0.6,
+            albedo: 1.0,
+            seed: 0,
+        }
+    }
+}
+
+impl FitSettings {
+    /// One-line errors for settings no fit can run with.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str| Err(Error(format!("fit settings: {what}")));
+        if self.factor == 0 {
+            return bad("factor must be at least 1");
+        }
+        if self.updates.is_empty() || self.resolution >> (self.updates.len() - 1) < 2 {
+            return bad("resolution must give at least 2 voxels along the longest edge at the coarsest level");
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return bad("lr must be finite and > 0");
+        }
+        if !(self.smoothness.is_finite() && self.smoothness >= 0.0) {
+            return bad("smoothness must be finite and >= 0");
+        }
+        if !(self.start_depth.is_finite() && self.start_depth > 0.0) {
+            return bad("start_depth must be finite and > 0");
+        }
+        if self.refit_every == 0 || self.spp == 0 {
+            return bad("refit_every and spp must be at least 1");
+        }
+        if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
+            return bad("g must be in (-1, 1) and albedo in [0, 1]");
+        }
+        Ok(())
+    }
+}
+
+/// The candidate lights: far from the box (four times its half-diagonal
+/// from its centre), six around it 20 degrees above its centre (every 60
+/// degrees of azimuth about the up axis +y, starting at +x) plus one above
+/// and one below. Their intensities are fitted (most end at 0): a fixed
+/// basis able to express a few studio lights in unknown places.
+pub fn candidate_lights(lo: &Vec3, hi: &Vec3) -> Vec<Light> {
+    let centre = (lo + hi) / 2.0;
+    let distance = 2.0 * (hi - lo).norm();
+    let mut dirs: Vec<Vec3> = (0..6)
+        .map(|k| {
+            let (az, el) = ((k as f64 * 60.0).to_radians(), 20f64.to_radians());
+            Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin())
+        })
+        .collect();
+    dirs.push(Vec3::new(0.0, 1.0, 0.0));
+    dirs.push(Vec3::new(0.0, -1.0, 0.0));
+    dirs.into_iter().map(|d| Light { position: centre + d * distance, intensity: 0.0 }).collect()
+}
+
+/// One row of a fit's log.
+#[derive(Clone, Debug, Serialize)]
+pub struct FitRow {
+    /// Level (0 = coarsest).
+    pub level: usize,
+    /// Update within the level.
+    pub update: usize,
+    /// The images' mean squared error (code value / full scale, squared).
+    pub image_mse: f64,
+    /// The smoothness term.
+    pub smoothness: f64,
+    /// Seconds since the fit began.
+    pub seconds: f64,
+}
+
+/// A fitted frame.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    /// The training cameras at the working resolution, the fitted density,
+    /// lights and emission.
+    pub scene: Scene,
+    /// The settings it was fitted with.
+    pub settings: FitSettings,
+    /// Per update.
+    pub log: Vec<FitRow>,
+    /// Seconds the fit took.
+    pub seconds: f64,
+}
+
+/// Fits the frame whose training images (at 1/`settings.factor` of the
+/// capture's resolution) are `images`, seen by `cameras` (at the same
+/// resolution), with the density on a grid over `smoke_box`.
+pub fn fit(
+    cameras: &[Camera],
+    images: &[Image],
+    smoke_box: (Vec3, Vec3),
+    settings: &FitSettings,
+    progress: &mut dyn FnMut(&FitRow),
+) -> Result<Fit> {
+    settings.validate()?;
+    let start = Instant::now();
+    let (lo, hi) = smoke_box;
+    let silhouettes: Vec<Vec<bool>> = images.iter().map(|im| real_silhouette(im, settings.factor)).collect();
+    let levels = settings.updates.len();
+    let mut scene = Scene {
+        density: Grid::new(lo, hi, [1, 1, 1], vec![0.0]),
+        medium: Medium {
+            sigma_t_scale: 1.0,
+            albedo: settings.albedo,
+            g: settings.g,
+            max_order: settings.model.max_order(),
+            emission: 0.0,
+        },
+        lights: if settings.model.lit() { candidate_lights(&lo, &hi) } else { Vec::new() },
+        cameras: cameras.to_vec(),
+        render: RenderSettings {
+            photons: if settings.model == ImageModel::Multiple { settings.photons } else { 0 },
+            spp: settings.spp,
+            seed: settings.seed,
+            ..RenderSettings::default()
+        },
+    };
+    let mut log = Vec::new();
+    let mut renders = 0u64;
+    for (level, &updates) in settings.updates.iter().enumerate() {
+        let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
+        let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
+        let hull = carve(&grid, cameras, &silhouettes);
+        if !hull.iter().any(|&h| h) {
+            return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
+        }
+        let mut density = if level == 0 {
+            start_density(&grid, &hull, settings.start_depth)
+        } else {
+            upsample(&scene.density, &grid, &hull)
+        };
+        let support = Grid::new(lo, hi, shape, hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect());
+        let step = settings.lr * mean_inside(&density, &hull).max(f64::MIN_POSITIVE);
+        let mut adam = Adam::new(density.len(), step);
+        for update in 0..updates {
+            scene.density = density.clone();
+            if update % settings.refit_every == 0 {
+                fit_lights(&mut scene, images, &mut renders)?;
+            }
+            scene.render.seed = settings.seed.wrapping_add(renders);
+            renders += 1;
+            let frozen = Frozen::new(&scene, Some(&support));
+            let reverse = reverse_gradient(&frozen, images, Subset::full());
+            let (smooth, smooth_grad) = smoothness(&density, settings.smoothness);
+            let grad: Vec<f64> = reverse
+                .grad
+                .iter()
+                .zip(&smooth_grad)
+                .zip(&hull)
+                .map(|((g, s), &inside)| if inside { g + s } else { 0.0 })
+                .collect();
+            if grad.iter().any(|g| !g.is_finite()) {
+                return Err(Error(format!("level {level}, update {update}: the gradient is not finite")));
+            }
+            adam.step(&mut density.data, &grad);
+            density.data.iter_mut().for_each(|d| *d = d.max(0.0));
+            let row = FitRow { level, update, image_mse: reverse.loss, smoothness: smooth, seconds: start.elapsed().as_secs_f64() };
+            progress(&row);
+            log.push(row);
+        }
+        scene.density = density;
+    }
+    fit_lights(&mut scene, images, &mut renders)?;
+    Ok(Fit { scene, settings: settings.clone(), log, seconds: start.elapsed().as_secs_f64() })
+}
+
+/// The grid's shape (Z, Y, X) over `lo..hi` with `longest` voxels along the
+/// longest edge and cubic voxels as near as whole numbers allow.
+fn grid_shape(lo: &Vec3, hi: &Vec3, longest: usize) -> [usize; 3] {
+    let e = hi - lo;
+    let max = e.x.max(e.y).max(e.z);
+    let n = |x: f64| ((x / max * longest as f64).round() as usize).max(1);
+    [n(e.z), n(e.y), n(e.x)]
+}
+
+/// The hull at a constant density whose optical depth across the hull's
+/// mean chord (its volume over its largest cross-section, roughly) is `depth`.
+fn start_density(grid: &Grid<f64>, hull: &[bool], depth: f64) -> Grid<f64> {
+    let inside = hull.iter().filter(|&&h| h).count() as f64;
+    let v = grid.voxel_size();
+    let voxel = (v.x * v.y * v.z).cbrt();
+    let chord = inside.cbrt() * voxel;
+    let rho = depth / chord;
+    Grid::new(grid.lo, grid.hi, grid.shape, hull.iter().map(|&h| if h { rho } else { 0.0 }).collect())
+}
+
+/// `coarse` sampled at `grid`'s voxel centres (trilinear), 0 outside `hull`.
+fn upsample(coarse: &Grid<f64>, grid: &Grid<f64>, hull: &[bool]) -> Grid<f64> {
+    let [nz, ny, nx] = grid.shape;
+    let mut data = vec![0.0; grid.len()];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let idx = grid.index(k, j, i);
+                if hull[idx] {
+                    data[idx] = coarse.at(&grid.voxel_center(k, j, i));
+                }
+            }
+        }
+    }
+    Grid::new(grid.lo, grid.hi, grid.shape, data)
+}
+
+/// Mean density over the hull's voxels.
+fn mean_inside(density: &Grid<f64>, hull: &[bool]) -> f64 {
+    let (sum, n) = density.data.iter().zip(hull).filter(|(_, &h)| h).fold((0.0, 0usize), |(s, n), (d, _)| (s + d, n + 1));
+    sum / n.max(1) as f64
+}
+
+/// The smoothness term `weight * mean over neighbouring pairs of (h (rho_a - rho_b))^2`
+/// (h the voxel size along the pair's axis) and its gradient.
+fn smoothness(density: &Grid<f64>, weight: f64) -> (f64, Vec<f64>) {
+    let mut grad = vec![0.0; density.len()];
+    if weight == 0.0 {
+        return (0.0, grad);
+    }
+    let [nz, ny, nx] = density.shape;
+    let h = density.voxel_size();
+    let axes = [(h.z, nz, 0usize), (h.y, ny, 1), (h.x, nx, 2)];
+    let pairs: usize = axes.iter().map(|&(_, n, _)| density.len() / n * (n - 1)).sum();
+    let scale = weight / pairs.max(1) as f64;
+    let mut sum = 0.0;
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let a = density.index(k, j, i);
+                for &(step, n, axis) in &axes {
+                    let (kk, jj, ii) = match axis {
+                        0 => (k + 1, j, i),
+                        1 => (k, j + 1, i),
+                        _ => (k, j, i + 1),
+                    };
+                    if [kk, jj, ii][axis] >= n {
+                        continue;
+                    }
+                    let b = density.index(kk, jj, ii);
+                    let d = step * (density.data[a] - density.data[b]);
+                    sum += d * d;
+                    grad[a] += 2.0 * scale * step * d;
+                    grad[b] -= 2.0 * scale * step * d;
+                }
+            }
+        }
+    }
+    (scale * sum, grad)
+}
+
+/// Sets the lights' intensities and the emission of `scene` to their
+/// non-negative least-squares fit to `targets`: the image is linear in
+/// them, so one render per light (intensity 1, no emission) and one of the
+/// emission alone give it exactly.
+fn fit_lights(scene: &mut Scene, targets: &[Image], renders: &mut u64) -> Result<()> {
+    let seed = scene.render.seed;
+    let mut basis = Vec::new();
+    for l in 0..=scene.lights.len() {
+        let mut one = scene.clone();
+        one.render.seed = seed.wrapping_add(*renders);
+        *renders += 1;
+        one.medium.emission = if l == scene.lights.len() { 1.0 } else { 0.0 };
+        one.lights.iter_mut().enumerate().for_each(|(m, light)| light.intensity = if m == l { 1.0 } else { 0.0 });
+        basis.push(render_photon(&one).images);
+    }
+    let weights = nnls(&basis, targets);
+    for (light, w) in scene.lights.iter_mut().zip(&weights) {
+        light.intensity = *w;
+    }
+    scene.medium.emission = *weights.last().unwrap();
+    if weights.iter().all(|&w| w == 0.0) {
+        return Err(Error("no light or emission explains the images: they are black where the smoke is".into()));
+    }
+    Ok(())
+}
+
+/// Non-negative weights `w` minimising `sum_pixels (sum_b w_b basis_b - target)^2`,
+/// by cyclic coordinate descent on the normal equations (few unknowns).
+fn nnls(basis: &[Vec<Image>], targets: &[Image]) -> Vec<f64> {
+    let n = basis.len();
+    let dot = |a: &[Image], b: &[Image]| -> f64 {
+        a.iter().zip(b).map(|(x, y)| x.data.iter().zip(&y.data).map(|(p, q)| p * q).sum::<f64>()).sum()
+    };
+    let gram: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| dot(&basis[i], &basis[j])).collect()).collect();
+    let rhs: Vec<f64> = (0..n).map(|i| dot(&basis[i], targets)).collect();
+    let mut w = vec![0.0; n];
+    for _ in 0..2000 {
+        for i in 0..n {
+            if gram[i][i] <= 0.0 {
+                continue;
+            }
+            let r: f64 = rhs[i] - (0..n).map(|j| gram[i][j] * w[j]).sum::<f64>();
+            w[i] = (w[i] + r / gram[i][i]).max(0.0);
+        }
+    }
+    w
+}
+
+/// Photons of a rendered view of a fitted scene (multiple scattering only):
+/// more than an update's, so that the view's noise is far below the fit's error.
+pub const VIEW_PHOTONS: u64 = 200_000;
+
+/// Camera samples per pixel of a rendered view: at the capture's resolution
+/// a pixel is a small fraction of a voxel, so one sample is enough.
+pub const VIEW_SPP: u32 = 1;
+
+/// The image `camera` (at any resolution) sees of a fitted scene, rendered
+/// with [`VIEW_PHOTONS`] and [`VIEW_SPP`].
+pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
+    let mut scene = fit.scene.clone();
+    scene.cameras = vec![camera.clone()];
+    if scene.render.photons > 0 {
+        scene.render.photons = VIEW_PHOTONS;
+    }
+    scene.render.spp = VIEW_SPP;
+    scene.render.seed = fit.settings.seed.wrapping_add(u64::MAX / 2);
+    render_photon(&scene).images.remove(0)
+}
+
+/// The training images' mean squared error of a fitted scene (one render).
+pub fn training_mse(fit: &Fit, targets: &[Image]) -> f64 {
+    let images: Vec<Vec<f64>> = render_photon(&fit.scene).images.into_iter().map(|im| im.data).collect();
+    mse(&images, targets)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_recovers_non_negative_weights_and_clips_negative_ones() {
+        let im = |v: Vec<f64>| vec![Image { width: v.len(), height: 1, data: v }];
+        let basis = vec![im(vec![1.0, 0.0, 1.0]), im(vec![0.0, 1.0, 1.0]), im(vec![1.0, 1.0, 0.0])];
+        // target = 2 b0 + 0.5 b1: exact.
+        let w = nnls(&basis, &im(vec![2.0, 0.5, 2.5]));
+        assert!((w[0] - 2.0).abs() < 1e-9 && (w[1] - 0.5).abs() < 1e-9 && w[2].abs() < 1e-9, "{w:?}");
+        // target = b0 - b1 needs a negative weight: the fit keeps b1 at 0.
+        let w = nnls(&basis, &im(vec![1.0, -1.0, 0.0]));
+        assert!(w.iter().all(|&x| x >= 0.0) && w[1] == 0.0, "{w:?}");
+    }
+
+    #[test]
+    fn the_smoothness_gradient_matches_finite_differences() {
+        let lo = Vec3::new(0.0, 0.0, 0.0);
+        let hi = Vec3::new(1.0, 2.0, 1.5);
+        let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
+        let grid = Grid::new(lo, hi, [3, 5, 4], data);
+        let (_, grad) = smoothness(&grid, 0.7);
+        for v in [0, 17, 59] {
+            let h = 1e-6;
+            let mut up = grid.clone();
+            up.data[v] += h;
+            let mut down = grid.clone();
+            down.data[v] -= h;
+            let fd = (smoothness(&up, 0.7).0 - smoothness(&down, 0.7).0) / (2.0 * h);
+            assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
+        }
+    }
+}

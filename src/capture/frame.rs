@@ -1,0 +1,158 @@
+//! One frame of a capture, end to end: every check before any work, the
+//! training cameras' images at the working resolution, the fit, and each
+//! held-out camera rendered at the capture's full resolution and scored
+//! under the field's protocol. `dualphoton fit --capture` and
+//! `experiment_real` both go through here.
+
+use super::fit::{fit, render_view, Fit, FitRow, FitSettings};
+use super::observe::{observe, Observed};
+use super::protocol::{Protocol, Score};
+use super::{frames, Capture, Frames};
+use crate::error::{Error, Result};
+use crate::image::Image;
+use crate::math::Vec3;
+use std::time::Instant;
+
+/// Which cameras train and which are held out.
+#[derive(Clone, Debug)]
+pub struct Roles {
+    /// Training cameras (indices into the capture's views).
+    pub training: Vec<usize>,
+    /// Held-out cameras: scored, never fitted.
+    pub held_out: Vec<usize>,
+}
+
+impl Roles {
+    /// The calibration's own split: its test cameras held out, every other camera trains.
+    pub fn of(capture: &Capture) -> Roles {
+        let (held_out, training) = (0..capture.views.len()).partition(|&v| capture.views[v].held_out);
+        Roles { training, held_out }
+    }
+}
+
+/// A frame's images: the training cameras' at the working resolution, the
+/// held-out cameras' at the capture's.
+#[derive(Clone, Debug)]
+pub struct FrameImages {
+    /// The frame's index in the capture.
+    pub frame: usize,
+    /// The training cameras and their images, downsampled.
+    pub training: Observed,
+    /// Per held-out camera, its photograph at full resolution.
+    pub held_out: Vec<Image>,
+}
+
+/// A held-out camera's rendering and its score.
+#[derive(Clone, Debug)]
+pub struct HeldOutView {
+    /// The camera's index among the capture's views.
+    pub view: usize,
+    /// The fitted scene seen by it, at the capture's resolution.
+    pub prediction: Image,
+    /// Against its photograph under the field's protocol.
+    pub score: Score,
+    /// Seconds its render took.
+    pub render_s: f64,
+}
+
+/// A fitted frame and its held-out views.
+#[derive(Clone, Debug)]
+pub struct FrameFit {
+    /// The fit.
+    pub fit: Fit,
+    /// Per held-out camera.
+    pub held_out: Vec<HeldOutView>,
+}
+
+/// Every check a fit of `frames` of `capture` needs, before any work: the
+/// frames exist, videos can be decoded, the grid has a box that every
+/// camera sees, there is a camera to train on, and the working resolution
+/// leaves an image.
+pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitSettings) -> Result<()> {
+    settings.validate()?;
+    let count = capture.frame_count();
+    if let Some(n) = wanted.iter().find(|&&n| n >= count) {
+        return Err(Error(format!("frame {n} is out of range (the capture has frames 0..{})", count.saturating_sub(1))));
+    }
+    if roles.training.is_empty() {
+        return Err(Error("the capture has no training camera".into()));
+    }
+    let used = roles.training.iter().chain(&roles.held_out);
+    if !frames::have_ffmpeg() && used.clone().any(|&v| matches!(capture.views[v].frames, Frames::Video { .. })) {
+        return Err(Error(frames::NO_FFMPEG.into()));
+    }
+    let (lo, hi) = capture
+        .smoke_box
+        .ok_or_else(|| Error("the calibration gives no smoke box (voxel_matrix, voxel_scale): the grid needs one".into()))?;
+    for &v in used {
+        let view = &capture.views[v];
+        if !sees_box(&view.camera, &lo, &hi) {
+            return Err(Error(format!("camera {}: the smoke box is not in its image", view.name)));
+        }
+        if roles.training.contains(&v) && (view.camera.width < settings.factor || view.camera.height < settings.factor) {
+            return Err(Error(format!(
+                "camera {}: its {}x{} image is smaller than the working resolution's factor {}",
+                view.name, view.camera.width, view.camera.height, settings.factor
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Whether any of the box's corners or its centre projects into `camera`'s image.
+fn sees_box(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> bool {
+    let mut points: Vec<Vec3> =
+        (0..8).map(|c| Vec3::new([lo.x, hi.x][c & 1], [lo.y, hi.y][(c >> 1) & 1], [lo.z, hi.z][c >> 2])).collect();
+    points.push((lo + hi) / 2.0);
+    points.iter().any(|p| {
+        camera
+            .project(p)
+            .is_some_and(|(x, y)| x >= 0.0 && y >= 0.0 && x < camera.width as f64 && y < camera.height as f64)
+    })
+}
+
+/// The images of `wanted` frames (read in one pass per camera).
+pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -> Result<Vec<FrameImages>> {
+    let training = observe(capture, &roles.training, wanted, factor)?;
+    let mut held: Vec<Vec<Image>> = vec![Vec::new(); wanted.len()];
+    for &v in &roles.held_out {
+        for (per_frame, image) in held.iter_mut().zip(frames::read(&capture.views[v], wanted)?) {
+            per_frame.push(image);
+        }
+    }
+    Ok(wanted
+        .iter()
+        .zip(training.images)
+        .zip(held)
+        .map(|((&frame, images), held_out)| FrameImages {
+            frame,
+            training: Observed { cameras: training.cameras.clone(), images: vec![images], names: training.names.clone() },
+            held_out,
+        })
+        .collect())
+}
+
+/// Fits `images` (one frame) and renders and scores every held-out camera.
+pub fn fit_frame(
+    capture: &Capture,
+    roles: &Roles,
+    images: &FrameImages,
+    settings: &FitSettings,
+    progress: &mut dyn FnMut(&FitRow),
+) -> Result<FrameFit> {
+    let smoke_box = capture.smoke_box.ok_or_else(|| Error("the calibration gives no smoke box".into()))?;
+    let fitted = fit(&images.training.cameras, &images.training.images[0], smoke_box, settings, progress)?;
+    let mut held_out = Vec::new();
+    for (&v, truth) in roles.held_out.iter().zip(&images.held_out) {
+        let camera = &capture.views[v].camera;
+        let start = Instant::now();
+        let prediction = render_view(&fitted, camera);
+        let render_s = start.elapsed().as_secs_f64();
+        if prediction.data.iter().any(|x| !x.is_finite()) {
+            return Err(Error(format!("camera {}: the rendered view is not finite", capture.views[v].name)));
+        }
+        let score = Protocol::for_size(camera.width, camera.height).score(&prediction, truth);
+        held_out.push(HeldOutView { view: v, prediction, score, render_s });
+    }
+    Ok(FrameFit { fit: fitted, held_out })
+}

@@ -1,0 +1,121 @@
+//! What `dualphoton fit --capture` writes into its output folder:
+//! `scene.json` with `density.npy` (the fitted density on the smoke box, the
+//! lights and the emission, the training cameras at the working
+//! resolution: a scene `dualphoton render` takes), `log.csv` (per update),
+//! `fit_quality.csv` (per camera), `held_out.npy` and `held_out.png` (the
+//! held-out camera at the capture's resolution, code value / 255 after the
+//! fitted response; with several held-out cameras, `held_out_NAME.*`) and
+//! `manifest.json`.
+
+use super::calibration;
+use super::fit::{FitRow, FitSettings};
+use super::frame::{check, fit_frame, read, FrameFit, Roles};
+use super::Capture;
+use crate::error::{Error, Result};
+use crate::experiment::Run;
+use crate::io::rows::{fmt, write_rows};
+use crate::io::{npy, png};
+use crate::render::render_photon;
+use crate::scene::file;
+use serde::Serialize;
+use std::path::Path;
+
+/// One line of fit_quality.csv.
+#[derive(Serialize)]
+struct Quality {
+    camera: String,
+    role: &'static str,
+    /// The resolution scored: the working one (training) or the protocol's (held out).
+    width: usize,
+    height: usize,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    psnr_db: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    rel_rmse: Option<f64>,
+}
+
+/// The manifest's settings.
+#[derive(Serialize)]
+struct Settings<'a> {
+    capture: &'a Path,
+    frame: usize,
+    fit: &'a FitSettings,
+    /// The density grid's box (capture units) and shape (Z, Y, X).
+    bbox_min: [f64; 3],
+    bbox_max: [f64; 3],
+    shape: [usize; 3],
+    training: Vec<&'a str>,
+    held_out: Vec<&'a str>,
+}
+
+/// Fits frame `frame` of the capture at `calibration_path` (a file or the
+/// folder holding it) and writes everything into `out`.
+pub fn fit_and_write(calibration_path: &Path, frame: usize, settings: &FitSettings, out: &Path) -> Result<()> {
+    let path = calibration::locate(calibration_path);
+    let capture = calibration::load(&path).map_err(|e| Error(format!("--capture: {e}")))?;
+    let roles = Roles::of(&capture);
+    check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
+    let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
+    eprintln!("reading frame {frame} of {} cameras ...", roles.training.len() + roles.held_out.len());
+    let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
+    let mut log: Vec<FitRow> = Vec::new();
+    let result = fit_frame(&capture, &roles, &images, settings, &mut |row| {
+        eprint!("\rlevel {} update {}: image RMSE {:.5} ({:.0} s)   ", row.level, row.update, row.image_mse.sqrt(), row.seconds);
+        log.push(row.clone());
+    })?;
+    eprintln!();
+    write(&run, &capture, &roles, &images.training.images[0], &result, &log)?;
+    let scene = &result.fit.scene;
+    let d = &scene.density;
+    run.write_manifest(&Settings {
+        capture: &path,
+        frame,
+        fit: settings,
+        bbox_min: [d.lo.x, d.lo.y, d.lo.z],
+        bbox_max: [d.hi.x, d.hi.y, d.hi.z],
+        shape: d.shape,
+        training: roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect(),
+        held_out: roles.held_out.iter().map(|&v| capture.views[v].name.as_str()).collect(),
+    })?;
+    eprintln!("fit: frame {frame} in {:.0} s -> {}", result.fit.seconds, out.display());
+    Ok(())
+}
+
+/// Writes the fit's files (all but the manifest).
+fn write(run: &Run, capture: &Capture, roles: &Roles, targets: &[crate::image::Image], result: &FrameFit, log: &[FitRow]) -> Result<()> {
+    let scene = &result.fit.scene;
+    file::save(scene, &run.out, "scene")?;
+    write_rows(&run.path("log.csv"), log)?;
+    let mut quality = Vec::new();
+    let rendered = render_photon(scene).images;
+    for ((&v, image), target) in roles.training.iter().zip(&rendered).zip(targets) {
+        let score = super::protocol::Score::of(image, target);
+        let name = capture.views[v].name.clone();
+        quality.push(Quality { camera: name, role: "training", width: image.width, height: image.height, psnr_db: score.psnr, rel_rmse: score.rel_rmse });
+    }
+    let single = result.held_out.len() == 1;
+    for held in &result.held_out {
+        let view = &capture.views[held.view];
+        let stem = if single { "held_out".to_string() } else { format!("held_out_{}", view.name) };
+        let p = &held.prediction;
+        npy::write_f32(&run.path(&format!("{stem}.npy")), &[p.height, p.width], &p.data)?;
+        png::write_codes(&run.path(&format!("{stem}.png")), p.width, p.height, &p.data)?;
+        let protocol = super::protocol::Protocol::for_size(p.width, p.height);
+        let [_, _, w, h] = protocol.crop;
+        quality.push(Quality {
+            camera: view.name.clone(),
+            role: "held-out",
+            width: w,
+            height: h,
+            psnr_db: held.score.psnr,
+            rel_rmse: held.score.rel_rmse,
+        });
+        eprintln!(
+            "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",
+            view.name,
+            held.score.psnr.map_or("-".into(), |x| format!("{x:.2}")),
+            held.score.rel_rmse.map_or("-".into(), |x| format!("{:.1} %", 100.0 * x))
+        );
+    }
+    write_rows(&run.path("fit_quality.csv"), &quality)
+}
