@@ -218,6 +218,7 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     let calib = json!({
         "train_videos": [cam("far.mp4", 2.0, 0.0), cam("near.mp4", 1.0, 1.732)],
         "test_videos": [cam("test.mp4", 0.0, 2.0)],
+        "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0,
     });
     std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
     let exe = env!("CARGO_BIN_EXE_experiment_real");
@@ -226,7 +227,7 @@ fn experiment_real_scores_black_and_the_nearest_view() {
         std::process::Command::new(exe)
             .arg("--data")
             .arg(&dir)
-            .args(["--frames", frames])
+            .args(["--frames", frames, "--models", "emission-absorption"])
             .arg("--out")
             .arg(&out)
             .output()
@@ -234,7 +235,7 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     };
     let bad = run("0,3");
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(!bad.status.success() && err.contains("--frames: frame 3 is out of range"), "{err}");
+    assert!(!bad.status.success() && err.contains("frame 3 is out of range"), "{err}");
     assert!(!out.exists(), "an invalid option is refused before any output");
     let ok = run("0,2");
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
@@ -250,4 +251,78 @@ fn experiment_real_scores_black_and_the_nearest_view() {
         assert!(row[1] == "all black" || row[1] == "training view near as is", "{row:?}");
     }
     assert!(out.join("manifest.json").exists() && out.join("summary.md").exists());
+    // The model stage: one fit per frame, its held-out score finite.
+    let fits = std::fs::read_to_string(out.join("fits.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = fits.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2, "{fits}");
+    assert!(rows.iter().all(|r| r[1] == "emission-absorption" && r[2].parse::<f64>().is_ok_and(f64::is_finite)), "{fits}");
+}
+
+/// PINF's `voxel_matrix` of the box [-0.5, 0.5]^3 (with `voxel_scale` 1).
+const UNIT_BOX: [[f64; 4]; 4] = [[1.0, 0.0, 0.0, -0.5], [0.0, 1.0, 0.0, -0.5], [0.0, 0.0, 1.0, -0.5], [0.0, 0.0, 0.0, 1.0]];
+
+/// A ball of smoke's image: a disc of code 120 in the middle of a 128x96 frame.
+fn disc(x: u32, y: u32) -> u16 {
+    let (dx, dy) = (x as f64 - 63.5, y as f64 - 47.5);
+    if dx * dx + dy * dy < 400.0 {
+        120
+    } else {
+        0
+    }
+}
+
+#[test]
+fn fit_takes_a_capture_and_renders_its_held_out_camera() {
+    let dir = temp_dir("capture_fit");
+    for name in ["a", "b", "test"] {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        for f in 0..2 {
+            write_png(&dir.join(name).join(format!("{f:03}.png")), 128, 96, false, disc);
+        }
+    }
+    let cam = |file: &str, x: f64, z: f64| json!({"file_name": file, "frame_num": 2, "camera_angle_x": 0.6, "camera_hw": [96, 128], "transform_matrix": looking_at_origin(x, z)});
+    let calib = |a: Value| {
+        json!({"train_videos": [a, cam("b", 2.0, 0.0)], "test_videos": [cam("test", 1.414, 1.414)],
+            "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0})
+    };
+    let exe = env!("CARGO_BIN_EXE_dualphoton");
+    let out = dir.join("out");
+    let fit = |frame: &str| {
+        std::process::Command::new(exe)
+            .args(["fit", "--capture"])
+            .arg(dir.join("info.json"))
+            .args(["--frame", frame, "--model", "emission-absorption", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    // A camera turned away from the box, and a frame the capture lacks: one-line errors, no output.
+    let mut away = cam("a", 0.0, 2.0);
+    away["transform_matrix"] = looking_at_origin(0.0, 2.0);
+    away["transform_matrix"][0][3] = json!(5.0);
+    std::fs::write(dir.join("info.json"), calib(away).to_string()).unwrap();
+    let bad = fit("0");
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("camera a: the smoke box is not in its image"), "{err}");
+    std::fs::write(dir.join("info.json"), calib(cam("a", 0.0, 2.0)).to_string()).unwrap();
+    let bad = fit("2");
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("frame 2 is out of range"), "{err}");
+    assert!(!out.exists(), "a bad capture is refused before any output");
+    let ok = fit("1");
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let held = npy::read(&out.join("held_out.npy"), "held_out.npy").unwrap();
+    assert_eq!(held.shape, vec![96, 128], "held_out.npy is (H, W) at the capture's resolution");
+    assert!(held.data.iter().all(|v| v.is_finite() && *v >= 0.0));
+    // The ball seen from between the training cameras is a disc again: the
+    // fit puts light inside it, little outside.
+    let at = |x: usize, y: usize| held.data[y * 128 + x];
+    assert!(at(64, 48) > 0.2, "centre {}", at(64, 48));
+    assert!(at(2, 2) < 0.05, "corner {}", at(2, 2));
+    for file in ["scene.json", "density.npy", "log.csv", "fit_quality.csv", "held_out.png", "manifest.json"] {
+        assert!(out.join(file).exists(), "{file} missing");
+    }
+    let quality = std::fs::read_to_string(out.join("fit_quality.csv")).unwrap();
+    assert_eq!(quality.lines().count(), 4, "{quality}");
+    assert!(quality.contains("test,held-out"), "{quality}");
 }

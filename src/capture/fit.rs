@@ -17,9 +17,9 @@
 //! [`FitSettings::start_depth`] across the hull) and moves only where
 //! attenuation in the images asks for it.
 
+use super::align::offset;
 use super::observe::real_silhouette;
 use crate::error::{Error, Result};
-use crate::grad::loss::mse;
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::image::Image;
 use crate::math::Vec3;
@@ -107,6 +107,16 @@ pub struct FitSettings {
     pub g: f64,
     /// Single-scattering albedo assumed for the fog (water droplets absorb almost nothing).
     pub albedo: f64,
+    /// The capture's black threshold (code value / full scale): its
+    /// processing set everything up to it to 0 (ScalarFlow's background
+    /// subtraction: codes up to 8). Where a photograph is 0, a rendered
+    /// value below it is no error; a rendered view is set to 0 below it.
+    pub threshold: f64,
+    /// Correct every training camera's principal point so that its
+    /// photograph agrees with the render ([`super::align`]), from the second
+    /// level on, whenever the lights are fitted again; the offsets' mean
+    /// over the cameras stays 0 (the calibration's average is kept).
+    pub align: bool,
     /// Seed of every render.
     pub seed: u64,
 }
@@ -119,13 +129,15 @@ impl Default for FitSettings {
             resolution: 64,
             updates: vec![40, 40, 40],
             lr: 0.05,
-            smoothness: 0.1,
+            smoothness: 1000.0,
             start_depth: 0.3,
             refit_every: 10,
             photons: 20_000,
             spp: 1,
             g: 0.6,
             albedo: 1.0,
+            threshold: 8.0 / 255.0,
+            align: true,
             seed: 0,
         }
     }
@@ -152,6 +164,9 @@ impl FitSettings {
         }
         if self.refit_every == 0 || self.spp == 0 {
             return bad("refit_every and spp must be at least 1");
+        }
+        if !(0.0..1.0).contains(&self.threshold) {
+            return bad("threshold must be in [0, 1)");
         }
         if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
             return bad("g must be in (-1, 1) and albedo in [0, 1]");
@@ -202,6 +217,9 @@ pub struct Fit {
     pub scene: Scene,
     /// The settings it was fitted with.
     pub settings: FitSettings,
+    /// Per training camera, how far its principal point was moved (working
+    /// resolution pixels, right and down).
+    pub offsets: Vec<[f64; 2]>,
     /// Per update.
     pub log: Vec<FitRow>,
     /// Seconds the fit took.
@@ -243,6 +261,9 @@ pub fn fit(
     };
     let mut log = Vec::new();
     let mut renders = 0u64;
+    // The last update's images: where the lights are fitted again, they censor the targets.
+    let mut last: Option<Vec<Image>> = None;
+    let mut offsets = vec![[0.0; 2]; cameras.len()];
     for (level, &updates) in settings.updates.iter().enumerate() {
         let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
         let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
@@ -261,12 +282,18 @@ pub fn fit(
         for update in 0..updates {
             scene.density = density.clone();
             if update % settings.refit_every == 0 {
-                fit_lights(&mut scene, images, &mut renders)?;
+                if let (true, true, Some(rendered)) = (settings.align, level > 0, &last) {
+                    align_cameras(&mut scene.cameras, &mut offsets, rendered, images);
+                }
+                let targets = last.as_ref().map_or_else(|| images.to_vec(), |r| censored(images, r, settings.threshold));
+                fit_lights(&mut scene, &targets, &mut renders)?;
             }
             scene.render.seed = settings.seed.wrapping_add(renders);
             renders += 1;
             let frozen = Frozen::new(&scene, Some(&support));
-            let reverse = reverse_gradient(&frozen, images, Subset::full());
+            let targets = censored(images, &frozen.images, settings.threshold);
+            let reverse = reverse_gradient(&frozen, &targets, Subset::full());
+            last = Some(frozen.images.clone());
             let (smooth, smooth_grad) = smoothness(&density, settings.smoothness);
             let grad: Vec<f64> = reverse
                 .grad
@@ -286,8 +313,42 @@ pub fn fit(
         }
         scene.density = density;
     }
-    fit_lights(&mut scene, images, &mut renders)?;
-    Ok(Fit { scene, settings: settings.clone(), log, seconds: start.elapsed().as_secs_f64() })
+    let targets = last.as_ref().map_or_else(|| images.to_vec(), |r| censored(images, r, settings.threshold));
+    fit_lights(&mut scene, &targets, &mut renders)?;
+    Ok(Fit { scene, settings: settings.clone(), offsets, log, seconds: start.elapsed().as_secs_f64() })
+}
+
+/// Moves every camera's principal point so that its photograph agrees
+/// with `rendered` (its render before the move), keeping the mean move 0.
+fn align_cameras(cameras: &mut [Camera], offsets: &mut [[f64; 2]], rendered: &[Image], photos: &[Image]) {
+    let moves: Vec<[f64; 2]> = rendered.iter().zip(photos).map(|(r, p)| offset(r, p, [0.0, 0.0])).collect();
+    let n = moves.len() as f64;
+    let mean = [moves.iter().map(|m| m[0]).sum::<f64>() / n, moves.iter().map(|m| m[1]).sum::<f64>() / n];
+    for ((camera, total), m) in cameras.iter_mut().zip(offsets).zip(&moves) {
+        let (dx, dy) = (m[0] - mean[0], m[1] - mean[1]);
+        *camera = camera.shift(dx, dy);
+        *total = [total[0] + dx, total[1] + dy];
+    }
+}
+
+/// `targets` where the capture's threshold hides nothing, and `rendered`
+/// itself (no error) where a target is 0 and the render is below the
+/// threshold: there the photograph cannot tell the render is wrong.
+fn censored(targets: &[Image], rendered: &[Image], threshold: f64) -> Vec<Image> {
+    targets
+        .iter()
+        .zip(rendered)
+        .map(|(t, r)| Image {
+            width: t.width,
+            height: t.height,
+            data: t.data.iter().zip(&r.data).map(|(&t, &r)| if t == 0.0 && r < threshold { r } else { t }).collect(),
+        })
+        .collect()
+}
+
+/// The capture's processing applied to a rendered view: 0 below `threshold`.
+pub fn respond(image: &mut Image, threshold: f64) {
+    image.data.iter_mut().filter(|v| **v < threshold).for_each(|v| *v = 0.0);
 }
 
 /// The grid's shape (Z, Y, X) over `lo..hi` with `longest` voxels along the
@@ -437,13 +498,9 @@ pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
     }
     scene.render.spp = VIEW_SPP;
     scene.render.seed = fit.settings.seed.wrapping_add(u64::MAX / 2);
-    render_photon(&scene).images.remove(0)
-}
-
-/// The training images' mean squared error of a fitted scene (one render).
-pub fn training_mse(fit: &Fit, targets: &[Image]) -> f64 {
-    let images: Vec<Vec<f64>> = render_photon(&fit.scene).images.into_iter().map(|im| im.data).collect();
-    mse(&images, targets)
+    let mut image = render_photon(&scene).images.remove(0);
+    respond(&mut image, fit.settings.threshold);
+    image
 }
 
 #[cfg(test)]

@@ -7,12 +7,15 @@
 //!   or image files into images of code value / full scale.
 //! - [`observe`] gives the frames at a working resolution and the real
 //!   silhouettes a visual hull is carved from ([`crate::recon::hull::carve`]).
+//! - [`align`] finds how far a photograph must move to agree with a render
+//!   (a camera's principal point, corrected).
 //! - [`fit`] fits one frame: the density, the lights' intensities and the
 //!   emission, under one of three image models.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
 //!   downsampling, a fixed crop, PSNR and relative RMSE.
 
+pub mod align;
 pub mod calibration;
 pub mod fit;
 pub mod frame;

@@ -8,7 +8,7 @@
 //! `manifest.json`.
 
 use super::calibration;
-use super::fit::{FitRow, FitSettings};
+use super::fit::{respond, FitRow, FitSettings};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
 use super::Capture;
 use crate::error::{Error, Result};
@@ -87,7 +87,8 @@ fn write(run: &Run, capture: &Capture, roles: &Roles, targets: &[crate::image::I
     file::save(scene, &run.out, "scene")?;
     write_rows(&run.path("log.csv"), log)?;
     let mut quality = Vec::new();
-    let rendered = render_photon(scene).images;
+    let mut rendered = render_photon(scene).images;
+    rendered.iter_mut().for_each(|image| respond(image, result.fit.settings.threshold));
     for ((&v, image), target) in roles.training.iter().zip(&rendered).zip(targets) {
         let score = super::protocol::Score::of(image, target);
         let name = capture.views[v].name.clone();

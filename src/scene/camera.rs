@@ -108,6 +108,13 @@ impl Camera {
         Camera { lens, width, height, ..self.clone() }
     }
 
+    /// The camera whose principal point is `(dx, dy)` pixels further right
+    /// and down: its image is this one's moved by `(dx, dy)`.
+    pub fn shift(&self, dx: f64, dy: f64) -> Camera {
+        let [fx, fy, cx, cy] = self.intrinsics();
+        Camera { lens: Lens::Pinhole { fx, fy, cx: cx + dx, cy: cy + dy }, ..self.clone() }
+    }
+
     /// The same camera for the image averaged over `factor` x `factor`
     /// blocks (a partial block at the right or bottom edge is dropped): new
     /// pixel `(u, v)` covers old pixels `factor*u .. factor*(u+1)`, so every
