@@ -448,13 +448,15 @@ fn fit_lights(scene: &mut Scene, targets: &[Image], renders: &mut u64) -> Result
         basis.push(render_photon(&one).images);
     }
     let weights = nnls(&basis, targets);
+    if weights.iter().all(|&w| w == 0.0) {
+        // Nothing rendered (the density has gone to 0 where the images are
+        // black): the last intensities stay, so the density can grow back.
+        return Ok(());
+    }
     for (light, w) in scene.lights.iter_mut().zip(&weights) {
         light.intensity = *w;
     }
     scene.medium.emission = *weights.last().unwrap();
-    if weights.iter().all(|&w| w == 0.0) {
-        return Err(Error("no light or emission explains the images: they are black where the smoke is".into()));
-    }
     Ok(())
 }
 
