@@ -129,7 +129,7 @@ impl Default for FitSettings {
             resolution: 64,
             updates: vec![40, 40, 40],
             lr: 0.05,
-            smoothness: 1000.0,
+            smoothness: 0.001,
             start_depth: 0.3,
             refit_every: 10,
             photons: 20_000,
@@ -294,7 +294,7 @@ pub fn fit(
             let targets = censored(images, &frozen.images, settings.threshold);
             let reverse = reverse_gradient(&frozen, &targets, Subset::full());
             last = Some(frozen.images.clone());
-            let (smooth, smooth_grad) = smoothness(&density, settings.smoothness);
+            let (smooth, smooth_grad) = smoothness(&density, &hull, settings.smoothness);
             let grad: Vec<f64> = reverse
                 .grad
                 .iter()
@@ -394,9 +394,13 @@ fn mean_inside(density: &Grid<f64>, hull: &[bool]) -> f64 {
     sum / n.max(1) as f64
 }
 
-/// The smoothness term `weight * mean over neighbouring pairs of (h (rho_a - rho_b))^2`
-/// (h the voxel size along the pair's axis) and its gradient.
-fn smoothness(density: &Grid<f64>, weight: f64) -> (f64, Vec<f64>) {
+/// The smoothness term `weight * A / B^2` and its gradient: `A` the mean
+/// over neighbouring voxel pairs of `(h (rho_a - rho_b))^2` (h the voxel size
+/// along the pair's axis), `B` the mean of `h rho` over the hull. It does
+/// not change when the density is scaled, so it leaves the scale to the
+/// images (a term in `A` alone would pull every density towards 0 and
+/// every light up without bound, where nothing in the images resists).
+fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
     let mut grad = vec![0.0; density.len()];
     if weight == 0.0 {
         return (0.0, grad);
@@ -405,7 +409,7 @@ fn smoothness(density: &Grid<f64>, weight: f64) -> (f64, Vec<f64>) {
     let h = density.voxel_size();
     let axes = [(h.z, nz, 0usize), (h.y, ny, 1), (h.x, nx, 2)];
     let pairs: usize = axes.iter().map(|&(_, n, _)| density.len() / n * (n - 1)).sum();
-    let scale = weight / pairs.max(1) as f64;
+    let scale = 1.0 / pairs.max(1) as f64;
     let mut sum = 0.0;
     for k in 0..nz {
         for j in 0..ny {
@@ -429,7 +433,20 @@ fn smoothness(density: &Grid<f64>, weight: f64) -> (f64, Vec<f64>) {
             }
         }
     }
-    (scale * sum, grad)
+    // A = scale * sum with gradient `grad`; B = mean over the hull of h rho.
+    let h_mean = (h.x * h.y * h.z).cbrt();
+    let inside = hull.iter().filter(|&&x| x).count().max(1) as f64;
+    let b_sum: f64 = density.data.iter().zip(hull).filter(|(_, &x)| x).map(|(d, _)| d).sum();
+    let big_b = h_mean * b_sum / inside;
+    if big_b <= 0.0 {
+        return (0.0, vec![0.0; density.len()]);
+    }
+    let a_val = scale * sum;
+    let db = h_mean / inside;
+    for (g, &x) in grad.iter_mut().zip(hull) {
+        *g = weight * (*g / (big_b * big_b) - if x { 2.0 * a_val * db / big_b.powi(3) } else { 0.0 });
+    }
+    (weight * a_val / (big_b * big_b), grad)
 }
 
 /// Sets the lights' intensities and the emission of `scene` to their
@@ -527,14 +544,18 @@ mod tests {
         let hi = Vec3::new(1.0, 2.0, 1.5);
         let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
         let grid = Grid::new(lo, hi, [3, 5, 4], data);
-        let (_, grad) = smoothness(&grid, 0.7);
+        let hull: Vec<bool> = (0..60).map(|i| i % 7 != 3).collect();
+        let (_, grad) = smoothness(&grid, &hull, 0.7);
+        let (value, _) = smoothness(&grid, &hull, 0.7);
+        let scaled = grid.map(|d| 3.0 * d);
+        assert!((smoothness(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
         for v in [0, 17, 59] {
             let h = 1e-6;
             let mut up = grid.clone();
             up.data[v] += h;
             let mut down = grid.clone();
             down.data[v] -= h;
-            let fd = (smoothness(&up, 0.7).0 - smoothness(&down, 0.7).0) / (2.0 * h);
+            let fd = (smoothness(&up, &hull, 0.7).0 - smoothness(&down, &hull, 0.7).0) / (2.0 * h);
             assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
         }
     }
