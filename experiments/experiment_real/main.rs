@@ -97,10 +97,25 @@ fn run(args: Args) -> Result<()> {
         eprintln!("frame {frame}: scored");
     }
     write_rows(&run.path("baselines.csv"), &rows)?;
-    std::fs::write(run.path("summary.md"), summary(&rows, &test.name))?;
+    let mut md = summary(&rows, &test.name);
     if !args.models.is_empty() {
-        models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"))?;
+        let fits = models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"))?;
+        let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| args.frames.contains(&r.frame)).collect();
+        md += &format!(
+            "
+## Reconstructions
+
+Each frame fitted on the training cameras ({}) under each image model,              the held-out camera rendered at full resolution and scored as above. Mean over frames:
+
+",
+            roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect::<Vec<_>>().join(", ")
+        );
+        md += &models::table(&fits, &args.models);
+        let nearest_rows: Vec<(usize, f64)> =
+            rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
+        models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows)?;
     }
+    std::fs::write(run.path("summary.md"), md)?;
     run.write_manifest(&args)
 }
 

@@ -7,7 +7,8 @@ use dualphoton::capture::fit::{FitSettings, ImageModel};
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
-use dualphoton::io::rows::{fmt, read_rows, write_rows};
+use dualphoton::io::plot::{line_chart, Axes, Series};
+use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -90,4 +91,63 @@ pub fn run(
         }
     }
     Ok(rows)
+}
+
+/// The models' table (Markdown): per model the mean over the frames of
+/// the held-out PSNR and relative RMSE, the training RMSE and the seconds
+/// per frame, and how many frames; then the lit models against
+/// emission-absorption frame by frame.
+pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
+    let mean = |v: Vec<f64>| if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 };
+    let lines = models.iter().map(|m| {
+        let mine: Vec<&FitResult> = rows.iter().filter(|r| r.model == m.name()).collect();
+        vec![
+            m.name().to_string(),
+            format!("{:.2}", mean(mine.iter().filter_map(|r| r.psnr_db).collect())),
+            format!("{:.1}", 100.0 * mean(mine.iter().filter_map(|r| r.rel_rmse).collect())),
+            format!("{:.2}", 255.0 * mean(mine.iter().map(|r| r.train_rmse).collect())),
+            format!("{:.0}", mean(mine.iter().map(|r| r.fit_s + r.render_s).collect())),
+            mine.len().to_string(),
+        ]
+    });
+    let mut md = markdown_table(
+        &["image model", "held-out PSNR (dB)", "held-out relative RMSE (%)", "training RMSE (code values)", "seconds per frame", "frames"],
+        lines,
+    );
+    let ea = ImageModel::EmissionAbsorption.name();
+    for m in models.iter().filter(|m| m.name() != ea) {
+        let diffs: Vec<f64> = rows
+            .iter()
+            .filter(|r| r.model == m.name())
+            .filter_map(|r| {
+                let e = rows.iter().find(|e| e.frame == r.frame && e.model == ea)?;
+                Some(r.psnr_db? - e.psnr_db?)
+            })
+            .collect();
+        if !diffs.is_empty() {
+            let wins = diffs.iter().filter(|&&d| d > 0.0).count();
+            md += &format!(
+                "\n{} against {ea}: {:+.2} dB mean held-out PSNR, ahead on {wins} of {} frames.\n",
+                m.name(),
+                mean(diffs.clone()),
+                diffs.len()
+            );
+        }
+    }
+    md
+}
+
+/// `psnr_per_frame.svg`: the held-out PSNR of every model per frame.
+pub fn plot(path: &Path, rows: &[FitResult], models: &[ImageModel], floor: &[(usize, f64)]) -> Result<()> {
+    let mut series: Vec<Series> = models
+        .iter()
+        .map(|m| Series {
+            name: m.name().into(),
+            points: rows.iter().filter(|r| r.model == m.name()).filter_map(|r| Some((r.frame as f64, r.psnr_db?))).collect(),
+            markers: true,
+        })
+        .collect();
+    series.push(Series { name: "nearest training view as is".into(), points: floor.iter().map(|&(f, p)| (f as f64, p)).collect(), markers: false });
+    let axes = Axes { title: "Held-out camera, the field's protocol", x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
+    line_chart(path, &axes, &series)
 }
