@@ -291,7 +291,7 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
         std::process::Command::new(exe)
             .args(["fit", "--capture"])
             .arg(dir.join("info.json"))
-            .args(["--frame", frame, "--model", "emission-absorption", "--out"])
+            .args(["--frame", frame, "--out"])
             .arg(&out)
             .output()
             .unwrap()

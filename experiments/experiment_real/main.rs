@@ -102,12 +102,8 @@ fn run(args: Args) -> Result<()> {
         let fits = models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"))?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| args.frames.contains(&r.frame)).collect();
         md += &format!(
-            "
-## Reconstructions
-
-Each frame fitted on the training cameras ({}) under each image model,              the held-out camera rendered at full resolution and scored as above. Mean over frames:
-
-",
+            "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
+             the held-out camera rendered at full resolution and scored as above. Mean over frames:\n\n",
             roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect::<Vec<_>>().join(", ")
         );
         md += &models::table(&fits, &args.models);

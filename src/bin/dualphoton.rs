@@ -1,7 +1,7 @@
 //! The `dualphoton` command line: `render`, `grad`, `fit`, `judge` and `scene` (see `--help`).
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use dualphoton::capture::fit::{FitSettings, ImageModel};
+use dualphoton::capture::fit::FitSettings;
 use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
@@ -166,9 +166,6 @@ struct FitArgs {
     /// The frame of --capture to fit.
     #[arg(long, requires = "capture")]
     frame: Option<usize>,
-    /// The image model of --capture's fit.
-    #[arg(long, value_enum, default_value = "multiple")]
-    model: ImageModel,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -310,7 +307,7 @@ fn fit(a: FitArgs) -> Result<()> {
     set_threads(a.threads)?;
     if let Some(capture) = &a.capture {
         let frame = a.frame.ok_or_else(|| Error::new("--frame: give the frame of --capture to fit"))?;
-        let settings = FitSettings { model: a.model, seed: a.seed, ..FitSettings::default() };
+        let settings = FitSettings { seed: a.seed, ..FitSettings::default() };
         return dualphoton::capture::outputs::fit_and_write(capture, frame, &settings, &a.out);
     }
     a.method.check()?;

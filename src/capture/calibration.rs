@@ -4,7 +4,8 @@
 //! - **`info.json`** (PINF, HyFluid): `train_videos` and optional
 //!   `test_videos`, each a list of `{file_name, frame_num, camera_angle_x,
 //!   camera_hw: [H, W], transform_matrix}`; the test cameras are the
-//!   held-out ones. The smoke box is `voxel_matrix` (4x4) and `voxel_scale`,
+//!   held-out ones. `file_name` may also name a folder of the video's
+//!   frames as images (one per frame). The smoke box is `voxel_matrix` (4x4) and `voxel_scale`,
 //!   read as PINF and HyFluid read them: with the matrix's first and third
 //!   columns exchanged, the box is `M (s * u)` for `u` in `[0, 1]^3`.
 //! - **`transforms.json`** (NeRF, instant-ngp, nerfstudio): `frames`, a list
@@ -94,7 +95,17 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
             let lens = lens_from_angle(angle, width, height, &v.name("camera_angle_x"))?;
             let camera = posed(&v, lens, width, height)?;
             let video = existing(dir, &file, &v.name("file_name"))?;
-            views.push(View { name: stem(&video), camera, frames: Frames::Video { path: video, count }, held_out });
+            // A folder of frames extracted from the video stands in for it.
+            let frames = if video.is_dir() {
+                let frames = frame_source(&video, &v.name("file_name"))?;
+                if frames.count() != count {
+                    bail!("{}: {} holds {} images, frame_num says {count}", v.name("file_name"), show(&video), frames.count());
+                }
+                frames
+            } else {
+                Frames::Video { path: video.clone(), count }
+            };
+            views.push(View { name: stem(&video), camera, frames, held_out });
         }
     }
     let smoke_box = match (top.get("voxel_matrix"), top.get("voxel_scale")) {
