@@ -539,6 +539,29 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_fit_settings_are_valid_and_change_what_their_names_say() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/studies/real_dev");
+        let mut names = Vec::new();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            let settings: FitSettings = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            settings.validate().unwrap();
+            let name = path.file_stem().unwrap().to_string_lossy().into_owned();
+            let d = FitSettings::default();
+            let changed = match name.as_str() {
+                "default" => settings == d,
+                "no_align" => !settings.align,
+                n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
+                n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
+                _ => false,
+            };
+            assert!(changed, "{name}.json does not set what its name says");
+            names.push(name);
+        }
+        assert!(names.len() >= 2, "{names:?}");
+    }
+
+    #[test]
     fn the_smoothness_gradient_matches_finite_differences() {
         let lo = Vec3::new(0.0, 0.0, 0.0);
         let hi = Vec3::new(1.0, 2.0, 1.5);
