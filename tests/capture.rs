@@ -255,11 +255,15 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     let fits = std::fs::read_to_string(out.join("fits.csv")).unwrap();
     let rows: Vec<Vec<&str>> = fits.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 2, "{fits}");
-    assert!(rows.iter().all(|r| r[1] == "emission-absorption" && r[2].parse::<f64>().is_ok_and(f64::is_finite)), "{fits}");
+    assert!(
+        rows.iter().all(|r| r[1] == "emission-absorption" && r[2].parse::<f64>().is_ok_and(f64::is_finite)),
+        "{fits}"
+    );
 }
 
 /// PINF's `voxel_matrix` of the box [-0.5, 0.5]^3 (with `voxel_scale` 1).
-const UNIT_BOX: [[f64; 4]; 4] = [[1.0, 0.0, 0.0, -0.5], [0.0, 1.0, 0.0, -0.5], [0.0, 0.0, 1.0, -0.5], [0.0, 0.0, 0.0, 1.0]];
+const UNIT_BOX: [[f64; 4]; 4] =
+    [[1.0, 0.0, 0.0, -0.5], [0.0, 1.0, 0.0, -0.5], [0.0, 0.0, 1.0, -0.5], [0.0, 0.0, 0.0, 1.0]];
 
 /// A ball of smoke's image: a disc of code 120 in the middle of a 128x96 frame.
 fn disc(x: u32, y: u32) -> u16 {

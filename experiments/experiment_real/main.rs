@@ -69,8 +69,10 @@ fn run(args: Args) -> Result<()> {
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
     let fit_settings = match &args.fit_settings {
         Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?;
-            serde_json::from_str::<FitSettings>(&text).map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?
+            let text =
+                std::fs::read_to_string(path).map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?;
+            serde_json::from_str::<FitSettings>(&text)
+                .map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?
         }
         None => FitSettings::default(),
     };

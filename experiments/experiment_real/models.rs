@@ -46,7 +46,9 @@ pub fn run(
     csv: &Path,
 ) -> Result<Vec<FitResult>> {
     let mut rows: Vec<FitResult> = if csv.exists() { read_rows(csv)? } else { Vec::new() };
-    let done = |rows: &[FitResult], frame: usize, model: ImageModel| rows.iter().any(|r| r.frame == frame && r.model == model.name());
+    let done = |rows: &[FitResult], frame: usize, model: ImageModel| {
+        rows.iter().any(|r| r.frame == frame && r.model == model.name())
+    };
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
     for images in read(capture, roles, &todo, base.factor)? {
         let frame = images.frame;
@@ -75,7 +77,13 @@ pub fn run(
                 train_rmse: fitted.log.last().map_or(0.0, |r| r.image_mse.sqrt()),
                 fit_s: fitted.seconds,
                 render_s: held.render_s,
-                lights: fitted.scene.lights.iter().map(|l| format!("{:.4e}", l.intensity)).collect::<Vec<_>>().join(";"),
+                lights: fitted
+                    .scene
+                    .lights
+                    .iter()
+                    .map(|l| format!("{:.4e}", l.intensity))
+                    .collect::<Vec<_>>()
+                    .join(";"),
                 emission: fitted.scene.medium.emission,
             };
             eprintln!(
@@ -111,7 +119,14 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
         ]
     });
     let mut md = markdown_table(
-        &["image model", "held-out PSNR (dB)", "held-out relative RMSE (%)", "training RMSE (code values)", "seconds per frame", "frames"],
+        &[
+            "image model",
+            "held-out PSNR (dB)",
+            "held-out relative RMSE (%)",
+            "training RMSE (code values)",
+            "seconds per frame",
+            "frames",
+        ],
         lines,
     );
     let ea = ImageModel::EmissionAbsorption.name();
@@ -143,11 +158,20 @@ pub fn plot(path: &Path, rows: &[FitResult], models: &[ImageModel], floor: &[(us
         .iter()
         .map(|m| Series {
             name: m.name().into(),
-            points: rows.iter().filter(|r| r.model == m.name()).filter_map(|r| Some((r.frame as f64, r.psnr_db?))).collect(),
+            points: rows
+                .iter()
+                .filter(|r| r.model == m.name())
+                .filter_map(|r| Some((r.frame as f64, r.psnr_db?)))
+                .collect(),
             markers: true,
         })
         .collect();
-    series.push(Series { name: "nearest training view as is".into(), points: floor.iter().map(|&(f, p)| (f as f64, p)).collect(), markers: false });
-    let axes = Axes { title: "Held-out camera, the field's protocol", x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
+    series.push(Series {
+        name: "nearest training view as is".into(),
+        points: floor.iter().map(|&(f, p)| (f as f64, p)).collect(),
+        markers: false,
+    });
+    let axes =
+        Axes { title: "Held-out camera, the field's protocol", x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
     line_chart(path, &axes, &series)
 }

@@ -8,8 +8,8 @@
 //! the Jacobian is exact. Moving the camera's principal point by `d` then
 //! moves its render onto the photograph.
 
-use crate::image::Image;
 use crate::ad::dual::{lane, with_tangents};
+use crate::image::Image;
 use num_dual::DualSVec64;
 
 /// Two dual lanes: the offset's x and y.

@@ -99,7 +99,12 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
             let frames = if video.is_dir() {
                 let frames = frame_source(&video, &v.name("file_name"))?;
                 if frames.count() != count {
-                    bail!("{}: {} holds {} images, frame_num says {count}", v.name("file_name"), show(&video), frames.count());
+                    bail!(
+                        "{}: {} holds {} images, frame_num says {count}",
+                        v.name("file_name"),
+                        show(&video),
+                        frames.count()
+                    );
                 }
                 frames
             } else {

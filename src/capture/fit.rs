@@ -285,7 +285,8 @@ pub fn fit(
                 if let (true, true, Some(rendered)) = (settings.align, level > 0, &last) {
                     align_cameras(&mut scene.cameras, &mut offsets, rendered, images);
                 }
-                let targets = last.as_ref().map_or_else(|| images.to_vec(), |r| censored(images, r, settings.threshold));
+                let targets =
+                    last.as_ref().map_or_else(|| images.to_vec(), |r| censored(images, r, settings.threshold));
                 fit_lights(&mut scene, &targets, &mut renders)?;
             }
             scene.render.seed = settings.seed.wrapping_add(renders);
@@ -307,7 +308,13 @@ pub fn fit(
             }
             adam.step(&mut density.data, &grad);
             density.data.iter_mut().for_each(|d| *d = d.max(0.0));
-            let row = FitRow { level, update, image_mse: reverse.loss, smoothness: smooth, seconds: start.elapsed().as_secs_f64() };
+            let row = FitRow {
+                level,
+                update,
+                image_mse: reverse.loss,
+                smoothness: smooth,
+                seconds: start.elapsed().as_secs_f64(),
+            };
             progress(&row);
             log.push(row);
         }
@@ -390,7 +397,8 @@ fn upsample(coarse: &Grid<f64>, grid: &Grid<f64>, hull: &[bool]) -> Grid<f64> {
 
 /// Mean density over the hull's voxels.
 fn mean_inside(density: &Grid<f64>, hull: &[bool]) -> f64 {
-    let (sum, n) = density.data.iter().zip(hull).filter(|(_, &h)| h).fold((0.0, 0usize), |(s, n), (d, _)| (s + d, n + 1));
+    let (sum, n) =
+        density.data.iter().zip(hull).filter(|(_, &h)| h).fold((0.0, 0usize), |(s, n), (d, _)| (s + d, n + 1));
     sum / n.max(1) as f64
 }
 

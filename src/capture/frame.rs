@@ -72,7 +72,10 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
     settings.validate()?;
     let count = capture.frame_count();
     if let Some(n) = wanted.iter().find(|&&n| n >= count) {
-        return Err(Error(format!("frame {n} is out of range (the capture has frames 0..{})", count.saturating_sub(1))));
+        return Err(Error(format!(
+            "frame {n} is out of range (the capture has frames 0..{})",
+            count.saturating_sub(1)
+        )));
     }
     if roles.training.is_empty() {
         return Err(Error("the capture has no training camera".into()));
@@ -81,15 +84,16 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
     if !frames::have_ffmpeg() && used.clone().any(|&v| matches!(capture.views[v].frames, Frames::Video { .. })) {
         return Err(Error(frames::NO_FFMPEG.into()));
     }
-    let (lo, hi) = capture
-        .smoke_box
-        .ok_or_else(|| Error("the calibration gives no smoke box (voxel_matrix, voxel_scale): the grid needs one".into()))?;
+    let (lo, hi) = capture.smoke_box.ok_or_else(|| {
+        Error("the calibration gives no smoke box (voxel_matrix, voxel_scale): the grid needs one".into())
+    })?;
     for &v in used {
         let view = &capture.views[v];
         if !sees_box(&view.camera, &lo, &hi) {
             return Err(Error(format!("camera {}: the smoke box is not in its image", view.name)));
         }
-        if roles.training.contains(&v) && (view.camera.width < settings.factor || view.camera.height < settings.factor) {
+        if roles.training.contains(&v) && (view.camera.width < settings.factor || view.camera.height < settings.factor)
+        {
             return Err(Error(format!(
                 "camera {}: its {}x{} image is smaller than the working resolution's factor {}",
                 view.name, view.camera.width, view.camera.height, settings.factor
@@ -126,7 +130,11 @@ pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -
         .zip(held)
         .map(|((&frame, images), held_out)| FrameImages {
             frame,
-            training: Observed { cameras: training.cameras.clone(), images: vec![images], names: training.names.clone() },
+            training: Observed {
+                cameras: training.cameras.clone(),
+                images: vec![images],
+                names: training.names.clone(),
+            },
             held_out,
         })
         .collect())

@@ -20,8 +20,8 @@ pub mod calibration;
 pub mod fit;
 pub mod frame;
 pub mod frames;
-pub mod outputs;
 pub mod observe;
+pub mod outputs;
 pub mod protocol;
 
 use crate::math::Vec3;

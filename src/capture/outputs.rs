@@ -60,7 +60,13 @@ pub fn fit_and_write(calibration_path: &Path, frame: usize, settings: &FitSettin
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
     let mut log: Vec<FitRow> = Vec::new();
     let result = fit_frame(&capture, &roles, &images, settings, &mut |row| {
-        eprint!("\rlevel {} update {}: image RMSE {:.5} ({:.0} s)   ", row.level, row.update, row.image_mse.sqrt(), row.seconds);
+        eprint!(
+            "\rlevel {} update {}: image RMSE {:.5} ({:.0} s)   ",
+            row.level,
+            row.update,
+            row.image_mse.sqrt(),
+            row.seconds
+        );
         log.push(row.clone());
     })?;
     eprintln!();
@@ -82,7 +88,14 @@ pub fn fit_and_write(calibration_path: &Path, frame: usize, settings: &FitSettin
 }
 
 /// Writes the fit's files (all but the manifest).
-fn write(run: &Run, capture: &Capture, roles: &Roles, targets: &[crate::image::Image], result: &FrameFit, log: &[FitRow]) -> Result<()> {
+fn write(
+    run: &Run,
+    capture: &Capture,
+    roles: &Roles,
+    targets: &[crate::image::Image],
+    result: &FrameFit,
+    log: &[FitRow],
+) -> Result<()> {
     let scene = &result.fit.scene;
     file::save(scene, &run.out, "scene")?;
     write_rows(&run.path("log.csv"), log)?;
@@ -92,7 +105,14 @@ fn write(run: &Run, capture: &Capture, roles: &Roles, targets: &[crate::image::I
     for ((&v, image), target) in roles.training.iter().zip(&rendered).zip(targets) {
         let score = super::protocol::Score::of(image, target);
         let name = capture.views[v].name.clone();
-        quality.push(Quality { camera: name, role: "training", width: image.width, height: image.height, psnr_db: score.psnr, rel_rmse: score.rel_rmse });
+        quality.push(Quality {
+            camera: name,
+            role: "training",
+            width: image.width,
+            height: image.height,
+            psnr_db: score.psnr,
+            rel_rmse: score.rel_rmse,
+        });
     }
     let single = result.held_out.len() == 1;
     for held in &result.held_out {
