@@ -49,9 +49,6 @@ pub enum ImageModel {
 pub const MULTIPLE_ORDERS: u32 = 3;
 
 impl ImageModel {
-    /// Every model, in the order tables list them.
-    pub const ALL: [ImageModel; 3] = [ImageModel::Multiple, ImageModel::Single, ImageModel::EmissionAbsorption];
-
     /// The name in files and tables.
     pub fn name(self) -> &'static str {
         match self {
@@ -285,14 +282,13 @@ pub fn fit(
                 if let (true, true, Some(rendered)) = (settings.align, level > 0, &last) {
                     align_cameras(&mut scene.cameras, &mut offsets, rendered, images);
                 }
-                let targets =
-                    last.as_ref().map_or_else(|| images.to_vec(), |r| censored(images, r, settings.threshold));
+                let targets = censored(images, last.as_deref(), settings.threshold);
                 fit_lights(&mut scene, &targets, &mut renders)?;
             }
             scene.render.seed = settings.seed.wrapping_add(renders);
             renders += 1;
             let frozen = Frozen::new(&scene, Some(&support));
-            let targets = censored(images, &frozen.images, settings.threshold);
+            let targets = censored(images, Some(&frozen.images), settings.threshold);
             let reverse = reverse_gradient(&frozen, &targets, Subset::full());
             last = Some(frozen.images.clone());
             let (smooth, smooth_grad) = smoothness(&density, &hull, settings.smoothness);
@@ -320,7 +316,7 @@ pub fn fit(
         }
         scene.density = density;
     }
-    let targets = last.as_ref().map_or_else(|| images.to_vec(), |r| censored(images, r, settings.threshold));
+    let targets = censored(images, last.as_deref(), settings.threshold);
     fit_lights(&mut scene, &targets, &mut renders)?;
     Ok(Fit { scene, settings: settings.clone(), offsets, log, seconds: start.elapsed().as_secs_f64() })
 }
@@ -341,7 +337,9 @@ fn align_cameras(cameras: &mut [Camera], offsets: &mut [[f64; 2]], rendered: &[I
 /// `targets` where the capture's threshold hides nothing, and `rendered`
 /// itself (no error) where a target is 0 and the render is below the
 /// threshold: there the photograph cannot tell the render is wrong.
-fn censored(targets: &[Image], rendered: &[Image], threshold: f64) -> Vec<Image> {
+/// Without a render (none yet), `targets` as they are.
+fn censored(targets: &[Image], rendered: Option<&[Image]>, threshold: f64) -> Vec<Image> {
+    let Some(rendered) = rendered else { return targets.to_vec() };
     targets
         .iter()
         .zip(rendered)

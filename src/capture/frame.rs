@@ -108,11 +108,7 @@ fn sees_box(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> bool {
     let mut points: Vec<Vec3> =
         (0..8).map(|c| Vec3::new([lo.x, hi.x][c & 1], [lo.y, hi.y][(c >> 1) & 1], [lo.z, hi.z][c >> 2])).collect();
     points.push((lo + hi) / 2.0);
-    points.iter().any(|p| {
-        camera
-            .project(p)
-            .is_some_and(|(x, y)| x >= 0.0 && y >= 0.0 && x < camera.width as f64 && y < camera.height as f64)
-    })
+    points.iter().any(|p| camera.pixel_of(p).is_some())
 }
 
 /// The images of `wanted` frames (read in one pass per camera).

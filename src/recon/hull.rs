@@ -68,15 +68,10 @@ pub fn carve(grid: &Grid<f64>, cameras: &[Camera], silhouettes: &[Vec<bool>]) ->
         for j in 0..ny {
             for i in 0..nx {
                 let c = grid.voxel_center(k, j, i);
-                hull[grid.index(k, j, i)] = cameras.iter().zip(silhouettes).all(|(cam, sil)| {
-                    cam.project(&c).is_some_and(|(x, y)| {
-                        x >= 0.0
-                            && y >= 0.0
-                            && (x as usize) < cam.width
-                            && (y as usize) < cam.height
-                            && sil[(y as usize) * cam.width + x as usize]
-                    })
-                });
+                hull[grid.index(k, j, i)] = cameras
+                    .iter()
+                    .zip(silhouettes)
+                    .all(|(cam, sil)| cam.pixel_of(&c).is_some_and(|(x, y)| sil[y * cam.width + x]));
             }
         }
     }

@@ -100,6 +100,14 @@ impl Camera {
         })
     }
 
+    /// The pixel `(column, row)` where `p` appears, or `None` if `p` is
+    /// behind the camera or outside its image.
+    pub fn pixel_of(&self, p: &Vec3) -> Option<(usize, usize)> {
+        let (x, y) = self.project(p)?;
+        (x >= 0.0 && y >= 0.0 && (x as usize) < self.width && (y as usize) < self.height)
+            .then_some((x as usize, y as usize))
+    }
+
     /// The same camera seeing only the `width` x `height` window whose
     /// top-left pixel is `(x0, y0)`: the principal point moves, nothing else.
     pub fn crop(&self, x0: usize, y0: usize, width: usize, height: usize) -> Camera {
