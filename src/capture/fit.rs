@@ -18,6 +18,7 @@
 //! attenuation in the images asks for it.
 
 use super::align::offset;
+use super::lights::{flatten, single_image, step, Gathers};
 use super::observe::real_silhouette;
 use crate::error::{Error, Result};
 use crate::grad::reverse::{reverse_gradient, Subset};
@@ -114,6 +115,11 @@ pub struct FitSettings {
     /// level on, whenever the lights are fitted again; the offsets' mean
     /// over the cameras stays 0 (the calibration's average is kept).
     pub align: bool,
+    /// Lights whose places are fitted ([`super::lights`]): from the second
+    /// level on, the strongest this many candidates are kept and move
+    /// whenever the lights are fitted again. 0: every candidate stays in
+    /// its place and only the intensities are fitted.
+    pub lights: usize,
     /// Seed of every render.
     pub seed: u64,
 }
@@ -135,6 +141,7 @@ impl Default for FitSettings {
             albedo: 1.0,
             threshold: 8.0 / 255.0,
             align: true,
+            lights: 0,
             seed: 0,
         }
     }
@@ -261,6 +268,8 @@ pub fn fit(
     // The last update's images: where the lights are fitted again, they censor the targets.
     let mut last: Option<Vec<Image>> = None;
     let mut offsets = vec![[0.0; 2]; cameras.len()];
+    // Levenberg-Marquardt damping of the lights' places, kept between calls.
+    let mut damping = 1e-3;
     for (level, &updates) in settings.updates.iter().enumerate() {
         let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
         let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
@@ -283,7 +292,10 @@ pub fn fit(
                     align_cameras(&mut scene.cameras, &mut offsets, rendered, images);
                 }
                 let targets = censored(images, last.as_deref(), settings.threshold);
-                fit_lights(&mut scene, &targets, &mut renders)?;
+                let basis = fit_lights(&mut scene, &targets, &mut renders)?;
+                if settings.lights > 0 && level > 0 && settings.model.lit() {
+                    place_lights(&mut scene, &targets, &basis, settings.lights, &mut damping, &mut renders);
+                }
             }
             scene.render.seed = settings.seed.wrapping_add(renders);
             renders += 1;
@@ -455,32 +467,119 @@ fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>
     (weight * a_val / (big_b * big_b), grad)
 }
 
+/// One render per light of `scene` (intensity 1, no emission) and one of
+/// the emission alone, the `b`-th from seed `seed + b`.
+fn unit_renders(scene: &Scene, seed: u64) -> Vec<Vec<Image>> {
+    (0..=scene.lights.len())
+        .map(|b| {
+            let mut one = scene.clone();
+            one.render.seed = seed.wrapping_add(b as u64);
+            one.medium.emission = if b == scene.lights.len() { 1.0 } else { 0.0 };
+            one.lights.iter_mut().enumerate().for_each(|(m, light)| light.intensity = if m == b { 1.0 } else { 0.0 });
+            render_photon(&one).images
+        })
+        .collect()
+}
+
 /// Sets the lights' intensities and the emission of `scene` to their
 /// non-negative least-squares fit to `targets`: the image is linear in
 /// them, so one render per light (intensity 1, no emission) and one of the
-/// emission alone give it exactly.
-fn fit_lights(scene: &mut Scene, targets: &[Image], renders: &mut u64) -> Result<()> {
-    let seed = scene.render.seed;
-    let mut basis = Vec::new();
-    for l in 0..=scene.lights.len() {
-        let mut one = scene.clone();
-        one.render.seed = seed.wrapping_add(*renders);
-        *renders += 1;
-        one.medium.emission = if l == scene.lights.len() { 1.0 } else { 0.0 };
-        one.lights.iter_mut().enumerate().for_each(|(m, light)| light.intensity = if m == l { 1.0 } else { 0.0 });
-        basis.push(render_photon(&one).images);
-    }
+/// emission alone give it exactly. Returns those renders.
+fn fit_lights(scene: &mut Scene, targets: &[Image], renders: &mut u64) -> Result<Vec<Vec<Image>>> {
+    let seed = scene.render.seed.wrapping_add(*renders);
+    *renders += scene.lights.len() as u64 + 1;
+    let basis = unit_renders(scene, seed);
     let weights = nnls(&basis, targets);
     if weights.iter().all(|&w| w == 0.0) {
         // Nothing rendered (the density has gone to 0 where the images are
         // black): the last intensities stay, so the density can grow back.
-        return Ok(());
+        return Ok(basis);
     }
-    for (light, w) in scene.lights.iter_mut().zip(&weights) {
+    set_weights(scene, &weights);
+    Ok(basis)
+}
+
+/// The lights' intensities, then the emission.
+fn set_weights(scene: &mut Scene, weights: &[f64]) {
+    for (light, w) in scene.lights.iter_mut().zip(weights) {
         light.intensity = *w;
     }
     scene.medium.emission = *weights.last().unwrap();
-    Ok(())
+}
+
+/// `sum_b weights_b basis_b` minus `targets`, all cameras' pixels in order.
+fn residual(basis: &[Vec<Image>], weights: &[f64], targets: &[Image]) -> Vec<f64> {
+    let mut r: Vec<f64> = flatten(targets).iter().map(|t| -t).collect();
+    for (b, w) in basis.iter().zip(weights) {
+        for (r, v) in r.iter_mut().zip(flatten(b)) {
+            *r += w * v;
+        }
+    }
+    r
+}
+
+/// Keeps the `keep` lights of `scene` that add most to the images (by
+/// `basis`, their renders at unit intensity), then moves them by one
+/// Levenberg-Marquardt step ([`super::lights`]) with `damping`, tried
+/// again with more damping (up to three times) until the renderer's
+/// images at the new places, intensities fitted again from renders of the
+/// same seeds, agree better with `targets`. A place within the box's
+/// diagonal of its centre is refused: the lights are outside the set.
+fn place_lights(
+    scene: &mut Scene,
+    targets: &[Image],
+    basis: &[Vec<Image>],
+    keep: usize,
+    damping: &mut f64,
+    renders: &mut u64,
+) {
+    if scene.lights.len() > keep {
+        let share = |l: usize| scene.lights[l].intensity * flatten(&basis[l]).iter().sum::<f64>();
+        let mut order: Vec<usize> = (0..scene.lights.len()).collect();
+        order.sort_by(|&a, &b| share(b).total_cmp(&share(a)));
+        let mut kept = order[..keep].to_vec();
+        kept.sort_unstable();
+        scene.lights = kept.iter().map(|&l| scene.lights[l].clone()).collect();
+    }
+    // Every image of this call from one seed: the trials differ from the
+    // current places by the places alone, not by the renders' noise.
+    let seed = scene.render.seed.wrapping_add(*renders);
+    *renders += scene.lights.len() as u64 + 1;
+    let basis = unit_renders(scene, seed);
+    let weights = nnls(&basis, targets);
+    if weights.iter().all(|&w| w == 0.0) {
+        return;
+    }
+    set_weights(scene, &weights);
+    let error = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+    let r = residual(&basis, &weights, targets);
+    let before = error(&r);
+    let (lo, hi) = (scene.density.lo, scene.density.hi);
+    let (centre, diagonal) = ((lo + hi) / 2.0, (hi - lo).norm());
+    let m = &scene.medium;
+    let gathers = Gathers::new(&scene.density, m.sigma_t_scale, m.albedo, &scene.cameras);
+    let singles: Vec<_> = scene
+        .lights
+        .iter()
+        .map(|l| single_image(&gathers, &scene.density, m.sigma_t_scale, m.g, &l.position))
+        .collect();
+    let linear: Vec<Vec<f64>> = basis.iter().map(|b| flatten(b)).collect();
+    for _ in 0..3 {
+        let Some(moves) = step(&r, &weights, &singles, &linear, *damping) else { break };
+        let mut trial = scene.clone();
+        trial.lights.iter_mut().zip(&moves).for_each(|(l, d)| l.position += d);
+        if trial.lights.iter().all(|l| (l.position - centre).norm() > diagonal) {
+            let trial_basis = unit_renders(&trial, seed);
+            let trial_weights = nnls(&trial_basis, targets);
+            if error(&residual(&trial_basis, &trial_weights, targets)) < before {
+                set_weights(&mut trial, &trial_weights);
+                *scene = trial;
+                *damping = (*damping / 3.0).max(1e-6);
+                return;
+            }
+        }
+        *damping *= 4.0;
+    }
 }
 
 /// Non-negative weights `w` minimising `sum_pixels (sum_b w_b basis_b - target)^2`,
@@ -559,6 +658,7 @@ mod tests {
                 "no_align" => !settings.align,
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
+                n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
                 _ => false,
             };
             assert!(changed, "{name}.json does not set what its name says");

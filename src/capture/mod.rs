@@ -20,6 +20,7 @@ pub mod calibration;
 pub mod fit;
 pub mod frame;
 pub mod frames;
+pub mod lights;
 pub mod observe;
 pub mod outputs;
 pub mod protocol;
