@@ -259,6 +259,9 @@ fn experiment_real_scores_black_and_the_nearest_view() {
         rows.iter().all(|r| r[1] == "emission-absorption" && r[2].parse::<f64>().is_ok_and(f64::is_finite)),
         "{fits}"
     );
+    // The training photographs' noise: constant videos have none beyond their codec's.
+    assert!(fits.lines().next().unwrap().split(',').nth(5) == Some("train_noise"), "{fits}");
+    assert!(rows.iter().all(|r| r[5].parse::<f64>().is_ok_and(|n| (0.0..0.01).contains(&n))), "{fits}");
 }
 
 /// PINF's `voxel_matrix` of the box [-0.5, 0.5]^3 (with `voxel_scale` 1).

@@ -10,6 +10,7 @@
 //! Writes `results/scalarflow_real/{baselines.csv, summary.md, manifest.json}`.
 //! The capture is read from `--data` (never copied into the repository).
 
+mod figures;
 mod models;
 
 use clap::Parser;
@@ -101,7 +102,9 @@ fn run(args: Args) -> Result<()> {
     write_rows(&run.path("baselines.csv"), &rows)?;
     let mut md = summary(&rows, &test.name);
     if !args.models.is_empty() {
-        let fits = models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"))?;
+        let views = run.path("views");
+        let fits =
+            models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| args.frames.contains(&r.frame)).collect();
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
@@ -112,6 +115,9 @@ fn run(args: Args) -> Result<()> {
         let nearest_rows: Vec<(usize, f64)> =
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
         models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows)?;
+        let names: Vec<&str> = args.models.iter().map(|m| m.name()).collect();
+        let photographs: Vec<(usize, &Image)> = args.frames.iter().copied().zip(&truth).collect();
+        figures::compose(&args.out, &views, &names, &photographs)?;
     }
     std::fs::write(run.path("summary.md"), md)?;
     run.write_manifest(&args)

@@ -2,9 +2,12 @@
 //! each model, the held-out camera rendered at the capture's resolution and
 //! scored. Rows are appended to `fits.csv` as they finish, and a rerun
 //! skips the (frame, model) pairs already there, so a long run resumes.
+//! The figure frames' panels go to `views/` as their fits finish.
 
+use crate::figures::{self, FIGURE_FRAMES};
 use dualphoton::capture::fit::{FitSettings, ImageModel};
 use dualphoton::capture::frame::{fit_frame, read, Roles};
+use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::io::plot::{line_chart, Axes, Series};
@@ -25,6 +28,10 @@ pub struct FitResult {
     /// working resolution (code value / 255), at the fit's last update.
     #[serde(serialize_with = "fmt::f6")]
     pub train_rmse: f64,
+    /// The training photographs' own noise, on the same pixels and scale
+    /// (`capture::observe::temporal_noise`; an upper bound).
+    #[serde(serialize_with = "fmt::opt_f6")]
+    pub train_noise: Option<f64>,
     #[serde(serialize_with = "fmt::f1")]
     pub fit_s: f64,
     #[serde(serialize_with = "fmt::f1")]
@@ -44,6 +51,7 @@ pub fn run(
     models: &[ImageModel],
     base: &FitSettings,
     csv: &Path,
+    views: &Path,
 ) -> Result<Vec<FitResult>> {
     let mut rows: Vec<FitResult> = if csv.exists() { read_rows(csv)? } else { Vec::new() };
     let done = |rows: &[FitResult], frame: usize, model: ImageModel| {
@@ -52,6 +60,7 @@ pub fn run(
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
     for images in read(capture, roles, &todo, base.factor)? {
         let frame = images.frame;
+        let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
         let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
         for model in pending {
             let settings = FitSettings { model, ..base.clone() };
@@ -69,12 +78,16 @@ pub fn run(
             })?;
             let held = &result.held_out[0];
             let fitted = &result.fit;
+            if FIGURE_FRAMES.contains(&frame) {
+                figures::keep(views, frame, model.name(), &held.prediction, &fitted.scene.density)?;
+            }
             let row = FitResult {
                 frame,
                 model: model.name().into(),
                 psnr_db: held.score.psnr,
                 rel_rmse: held.score.rel_rmse,
                 train_rmse: fitted.log.last().map_or(0.0, |r| r.image_mse.sqrt()),
+                train_noise: noise,
                 fit_s: fitted.seconds,
                 render_s: held.render_s,
                 lights: fitted
@@ -114,6 +127,7 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
             format!("{:.2}", mean(mine.iter().filter_map(|r| r.psnr_db).collect())),
             format!("{:.1}", 100.0 * mean(mine.iter().filter_map(|r| r.rel_rmse).collect())),
             format!("{:.2}", 255.0 * mean(mine.iter().map(|r| r.train_rmse).collect())),
+            format!("{:.2}", 255.0 * mean(mine.iter().filter_map(|r| r.train_noise).collect())),
             format!("{:.0}", mean(mine.iter().map(|r| r.fit_s + r.render_s).collect())),
             mine.len().to_string(),
         ]
@@ -124,6 +138,7 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
             "held-out PSNR (dB)",
             "held-out relative RMSE (%)",
             "training RMSE (code values)",
+            "training photographs' noise (code values)",
             "seconds per frame",
             "frames",
         ],

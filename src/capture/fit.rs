@@ -667,6 +667,56 @@ mod tests {
         assert!(names.len() >= 2, "{names:?}");
     }
 
+    /// A light put 25 degrees away from where it lit the target images
+    /// (and too weak) is moved back towards its place.
+    #[test]
+    fn a_misplaced_light_moves_back_towards_its_place() {
+        use crate::scene::Lens;
+        let (lo, hi) = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+        let mut density = Grid::new(lo, hi, [10, 10, 10], vec![0.0; 1000]);
+        for k in 0..10 {
+            for j in 0..10 {
+                for i in 0..10 {
+                    let c = density.voxel_center(k, j, i);
+                    let v = density.index(k, j, i);
+                    density.data[v] = 4.0 * (1.0 - (c.norm() / 0.45).powi(2)).max(0.0) * (1.0 + c.x);
+                }
+            }
+        }
+        let camera = |x: f64, z: f64| Camera {
+            position: Vec3::new(x, 0.1, z),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            lens: Lens::Pinhole { fx: 60.0, fy: 60.0, cx: 12.0, cy: 12.0 },
+            width: 24,
+            height: 24,
+        };
+        let place = Vec3::new(2.5, 1.0, 1.0);
+        let mut scene = Scene {
+            density,
+            medium: Medium { sigma_t_scale: 1.0, albedo: 1.0, g: 0.6, max_order: 1, emission: 0.0 },
+            lights: vec![Light { position: place, intensity: 5.0 }],
+            cameras: vec![camera(0.0, 3.0), camera(3.0, 0.0), camera(-2.1, 2.1)],
+            render: RenderSettings { photons: 0, spp: 4, ..RenderSettings::default() },
+        };
+        let targets = render_photon(&scene).images;
+        let turn = 25f64.to_radians();
+        let start = Vec3::new(
+            place.x * turn.cos() - place.z * turn.sin(),
+            place.y,
+            place.x * turn.sin() + place.z * turn.cos(),
+        );
+        scene.lights[0] = Light { position: start, intensity: 2.0 };
+        let (mut damping, mut renders) = (1e-3, 0);
+        for _ in 0..12 {
+            let basis = fit_lights(&mut scene, &targets, &mut renders).unwrap();
+            place_lights(&mut scene, &targets, &basis, 1, &mut damping, &mut renders);
+        }
+        let angle = |p: &Vec3| p.normalize().dot(&place.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
+        let now = angle(&scene.lights[0].position);
+        assert!(now < 2.0, "the light is {now:.1} degrees from its place (it started 25 degrees away)");
+    }
+
     #[test]
     fn the_smoothness_gradient_matches_finite_differences() {
         let lo = Vec3::new(0.0, 0.0, 0.0);

@@ -50,6 +50,38 @@ pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usi
     Ok(Observed { cameras, images, names })
 }
 
+/// The photographs' noise around `frame` at 1/`factor` of the full
+/// resolution: the root mean square over every pixel of `views` (code
+/// value / 255) of [`noise_of_three`] on three consecutive frames (the
+/// frame and its neighbours, shifted inwards at the clip's ends). `None`
+/// for a capture of fewer than three frames.
+pub fn temporal_noise(capture: &Capture, views: &[usize], frame: usize, factor: usize) -> Result<Option<f64>> {
+    let count = capture.frame_count();
+    if count < 3 {
+        return Ok(None);
+    }
+    let first = frame.saturating_sub(1).min(count - 3);
+    let seen = observe(capture, views, &[first, first + 1, first + 2], factor)?;
+    Ok(Some(noise_of_three([&seen.images[0], &seen.images[1], &seen.images[2]])))
+}
+
+/// Noise from three consecutive frames of the same cameras: where the
+/// scene changes linearly over them, the middle frame minus the mean of
+/// the other two is noise alone, of variance 1.5 sigma^2 for independent
+/// noise of variance sigma^2 per frame. Change that is not linear in time
+/// counts as noise too, so this is an upper bound on the photographs' own.
+pub fn noise_of_three(frames: [&[Image]; 3]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for ((a, b), c) in frames[0].iter().zip(frames[1]).zip(frames[2]) {
+        for ((x, y), z) in a.data.iter().zip(&b.data).zip(&c.data) {
+            let d = y - 0.5 * (x + z);
+            sum += d * d;
+            n += 1;
+        }
+    }
+    (sum / (1.5 * n.max(1) as f64)).sqrt()
+}
+
 /// The silhouette of a real frame (code value / 255) at 1/`factor` of the
 /// full resolution: pixels above [`SILHOUETTE_CODE`], dilated by
 /// [`SILHOUETTE_MARGIN_PX`] / `factor` pixels (a disc).
@@ -85,6 +117,26 @@ fn dilate(mask: &[bool], width: usize, height: usize, radius: f64) -> Vec<bool> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_noise_of_three_frames_is_the_noise_added_to_a_linear_change() {
+        let mut rng = crate::rng::Rng::new(7, crate::rng::Purpose::Pixel, 0);
+        let sigma = 0.02;
+        let frame = |t: f64, rng: &mut crate::rng::Rng| Image {
+            width: 100,
+            height: 100,
+            data: (0..10_000)
+                .map(|p| {
+                    // Box-Muller: one normal number from two uniform ones.
+                    let normal = (-2.0 * (1.0 - rng.uniform()).ln()).sqrt() * (6.283185307179586 * rng.uniform()).cos();
+                    (p % 100) as f64 * 0.01 * (1.0 + t) + sigma * normal
+                })
+                .collect(),
+        };
+        let frames: Vec<Vec<Image>> = (0..3).map(|t| vec![frame(t as f64, &mut rng)]).collect();
+        let noise = noise_of_three([&frames[0], &frames[1], &frames[2]]);
+        assert!((noise / sigma - 1.0).abs() < 0.05, "{noise} against {sigma}");
+    }
 
     #[test]
     fn ringing_is_not_smoke_and_the_margin_is_a_disc() {

@@ -131,18 +131,51 @@ pub fn held_out_figure(truth: &Image, estimate: &Image, title: &str, out: &Path)
     svg.save(out)
 }
 
+/// A grid of panels as SVG: `rows` (a label, then its panels in column
+/// order), `columns` named above the first row, `title` and `caption` (one
+/// line each) above everything. Panels are placed as they are (no
+/// enlargement); a row's label is written at its left.
+pub fn labelled_grid(
+    rows: &[(String, Vec<Rgb>)],
+    columns: &[String],
+    title: &str,
+    caption: &str,
+    out: &Path,
+) -> Result<()> {
+    let (gap, left, top) = (6, 84, 76);
+    let pw = rows.iter().flat_map(|(_, p)| p.iter().map(|b| b.width)).max().unwrap_or(0);
+    let ph = rows.iter().flat_map(|(_, p)| p.iter().map(|b| b.height)).max().unwrap_or(0);
+    // Text about 0.55 of its size wide per character: the canvas is wide enough for both lines.
+    let text = |chars: usize, size: f64| (chars as f64 * size * 0.55) as usize + 2 * gap;
+    let w = (left + columns.len() * (pw + gap)).max(text(title.len(), 16.0)).max(text(caption.len(), 12.0));
+    let mut svg = Svg::new(w, top + rows.len() * (ph + gap));
+    svg.text(w as f64 / 2.0, 20.0, 16.0, Anchor::Middle, title);
+    svg.text(w as f64 / 2.0, 40.0, 12.0, Anchor::Middle, caption);
+    for (c, name) in columns.iter().enumerate() {
+        svg.text((left + c * (pw + gap) + pw / 2) as f64, (top - 10) as f64, 12.0, Anchor::Middle, name);
+    }
+    for (r, (label, panels)) in rows.iter().enumerate() {
+        let y = top + r * (ph + gap);
+        svg.text(6.0, (y + ph / 2) as f64, 13.0, Anchor::Start, label);
+        for (c, bitmap) in panels.iter().enumerate() {
+            svg.image(left + c * (pw + gap), y, bitmap)?;
+        }
+    }
+    svg.save(out)
+}
+
 /// Pixel replication factor that makes a panel of `width` pixels about [`SVG_PANEL`] wide.
 fn factor(width: usize) -> usize {
     (SVG_PANEL / width.max(1)).max(1)
 }
 
 /// `im` tone-mapped with `white` ([`tone_map`]), grey as RGB.
-fn grey(im: &Image, white: f64) -> Rgb {
+pub fn grey(im: &Image, white: f64) -> Rgb {
     Rgb { width: im.width, height: im.height, data: tone_map(&im.data, white).iter().flat_map(|&g| [g; 3]).collect() }
 }
 
 /// `estimate - truth` per pixel in units of `white / 4`, as [`signed_error_colour`].
-fn signed_error(truth: &Image, estimate: &Image, white: f64) -> Rgb {
+pub fn signed_error(truth: &Image, estimate: &Image, white: f64) -> Rgb {
     let data = truth
         .data
         .iter()

@@ -54,6 +54,14 @@ pub mod fmt {
             None => s.serialize_none(),
         }
     }
+
+    /// [`f6`] or an empty field.
+    pub fn opt_f6<S: Serializer>(v: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+        match v {
+            Some(v) => f6(v, s),
+            None => s.serialize_none(),
+        }
+    }
 }
 
 /// A Markdown table: a header row, its separator, then one line per row.
