@@ -120,6 +120,12 @@ pub struct FitSettings {
     /// whenever the lights are fitted again. 0: every candidate stays in
     /// its place and only the intensities are fitted.
     pub lights: usize,
+    /// Fit a gain per training camera (the cameras' brightest smoke differs
+    /// by up to about a third between them): the photographs are divided by
+    /// their gains, whose geometric mean over the training cameras is held
+    /// at 1. A held-out camera's gain is that mean, 1, by this rule fixed
+    /// in advance. Off: one gain for every camera, absorbed by the lights.
+    pub gains: bool,
     /// Seed of every render.
     pub seed: u64,
 }
@@ -142,6 +148,7 @@ impl Default for FitSettings {
             threshold: 8.0 / 255.0,
             align: true,
             lights: 0,
+            gains: false,
             seed: 0,
         }
     }
@@ -224,6 +231,8 @@ pub struct Fit {
     /// Per training camera, how far its principal point was moved (working
     /// resolution pixels, right and down).
     pub offsets: Vec<[f64; 2]>,
+    /// Per training camera, its gain: its photograph is its render times it.
+    pub gains: Vec<f64>,
     /// Per update.
     pub log: Vec<FitRow>,
     /// Seconds the fit took.
@@ -244,6 +253,10 @@ pub fn fit(
     let start = Instant::now();
     let (lo, hi) = smoke_box;
     let silhouettes: Vec<Vec<bool>> = images.iter().map(|im| real_silhouette(im, settings.factor)).collect();
+    let photographs = images;
+    // The photographs over their cameras' gains: what the renders are fitted to.
+    let mut gains = vec![1.0; images.len()];
+    let mut images: Vec<Image> = images.to_vec();
     let levels = settings.updates.len();
     let mut scene = Scene {
         density: Grid::new(lo, hi, [1, 1, 1], vec![0.0]),
@@ -289,10 +302,20 @@ pub fn fit(
             scene.density = density.clone();
             if update % settings.refit_every == 0 {
                 if let (true, true, Some(rendered)) = (settings.align, level > 0, &last) {
-                    align_cameras(&mut scene.cameras, &mut offsets, rendered, images);
+                    align_cameras(&mut scene.cameras, &mut offsets, rendered, &images);
                 }
-                let targets = censored(images, last.as_deref(), settings.threshold);
+                let targets = censored(&images, last.as_deref(), settings.threshold);
                 let basis = fit_lights(&mut scene, &targets, &mut renders)?;
+                if settings.gains && level > 0 {
+                    let weights: Vec<f64> =
+                        scene.lights.iter().map(|l| l.intensity).chain([scene.medium.emission]).collect();
+                    fit_gains(&mut gains, &weights, &basis, photographs, last.as_deref(), settings.threshold);
+                    images = photographs
+                        .iter()
+                        .zip(&gains)
+                        .map(|(p, g)| Image { data: p.data.iter().map(|v| v / g).collect(), ..p.clone() })
+                        .collect();
+                }
                 if settings.lights > 0 && level > 0 && settings.model.lit() {
                     place_lights(&mut scene, &targets, &basis, settings.lights, &mut damping, &mut renders);
                 }
@@ -300,7 +323,7 @@ pub fn fit(
             scene.render.seed = settings.seed.wrapping_add(renders);
             renders += 1;
             let frozen = Frozen::new(&scene, Some(&support));
-            let targets = censored(images, Some(&frozen.images), settings.threshold);
+            let targets = censored(&images, Some(&frozen.images), settings.threshold);
             let reverse = reverse_gradient(&frozen, &targets, Subset::full());
             last = Some(frozen.images.clone());
             let (smooth, smooth_grad) = smoothness(&density, &hull, settings.smoothness);
@@ -328,9 +351,9 @@ pub fn fit(
         }
         scene.density = density;
     }
-    let targets = censored(images, last.as_deref(), settings.threshold);
+    let targets = censored(&images, last.as_deref(), settings.threshold);
     fit_lights(&mut scene, &targets, &mut renders)?;
-    Ok(Fit { scene, settings: settings.clone(), offsets, log, seconds: start.elapsed().as_secs_f64() })
+    Ok(Fit { scene, settings: settings.clone(), offsets, gains, log, seconds: start.elapsed().as_secs_f64() })
 }
 
 /// Moves every camera's principal point so that its photograph agrees
@@ -518,6 +541,38 @@ fn residual(basis: &[Vec<Image>], weights: &[f64], targets: &[Image]) -> Vec<f64
     r
 }
 
+/// Sets every camera's gain to the least-squares scale of its render
+/// (`basis` weighted by `weights`: the lights' intensities, then the emission) onto its
+/// photograph (censored as the fit's targets are), then divides all by
+/// their geometric mean, which the lights absorb: the render's level is the
+/// lights', the gains say only how the cameras differ.
+fn fit_gains(
+    gains: &mut [f64],
+    weights: &[f64],
+    basis: &[Vec<Image>],
+    photographs: &[Image],
+    last: Option<&[Image]>,
+    threshold: f64,
+) {
+    let targets = censored(photographs, last, threshold);
+    let fitted: Vec<f64> = (0..gains.len())
+        .map(|c| {
+            let render: Vec<f64> = (0..targets[c].data.len())
+                .map(|p| basis.iter().zip(weights).map(|(b, w)| w * b[c].data[p]).sum())
+                .collect();
+            let rr: f64 = render.iter().map(|r| r * r).sum();
+            let rt: f64 = render.iter().zip(&targets[c].data).map(|(r, t)| r * t).sum();
+            if rr > 0.0 && rt > 0.0 {
+                rt / rr
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let mean = (fitted.iter().map(|g| g.ln()).sum::<f64>() / fitted.len() as f64).exp();
+    gains.iter_mut().zip(&fitted).for_each(|(g, f)| *g = f / mean);
+}
+
 /// Keeps the `keep` lights of `scene` that add most to the images (by
 /// `basis`, their renders at unit intensity), then moves them by one
 /// Levenberg-Marquardt step ([`super::lights`]) with `damping`, tried
@@ -658,6 +713,7 @@ mod tests {
                 "no_align" => !settings.align,
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
+                "gains" => settings.gains,
                 n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
                 _ => false,
             };
@@ -665,6 +721,24 @@ mod tests {
             names.push(name);
         }
         assert!(names.len() >= 2, "{names:?}");
+    }
+
+    /// Two cameras whose photographs are their renders times 1.2 and 0.8
+    /// get gains in that ratio, of geometric mean 1.
+    #[test]
+    fn gains_recover_how_the_cameras_differ() {
+        let im = |v: Vec<f64>| Image { width: v.len(), height: 1, data: v };
+        let basis =
+            vec![vec![im(vec![0.1, 0.3, 0.0]), im(vec![0.2, 0.0, 0.1])], vec![im(vec![0.05; 3]), im(vec![0.02; 3])]];
+        let weights = [2.0, 1.5];
+        let render =
+            |c: usize| -> Vec<f64> { (0..3).map(|p| 2.0 * basis[0][c].data[p] + 1.5 * basis[1][c].data[p]).collect() };
+        let photographs =
+            vec![im(render(0).iter().map(|v| 1.2 * v).collect()), im(render(1).iter().map(|v| 0.8 * v).collect())];
+        let mut gains = vec![1.0; 2];
+        fit_gains(&mut gains, &weights, &basis, &photographs, None, 0.0);
+        let mean = (0.96f64).sqrt();
+        assert!((gains[0] - 1.2 / mean).abs() < 1e-12 && (gains[1] - 0.8 / mean).abs() < 1e-12, "{gains:?}");
     }
 
     /// A light put 25 degrees away from where it lit the target images

@@ -32,6 +32,9 @@ struct Quality {
     psnr_db: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     rel_rmse: Option<f64>,
+    /// The camera's fitted gain (a held-out camera's by the fit's rule: 1).
+    #[serde(serialize_with = "fmt::f4")]
+    gain: f64,
 }
 
 /// The manifest's settings.
@@ -100,10 +103,11 @@ fn write(
     file::save(scene, &run.out, "scene")?;
     write_rows(&run.path("log.csv"), log)?;
     let mut quality = Vec::new();
-    let mut rendered = render_photon(scene).images;
-    rendered.iter_mut().for_each(|image| respond(image, result.fit.settings.threshold));
-    for ((&v, image), target) in roles.training.iter().zip(&rendered).zip(targets) {
-        let score = super::protocol::Score::of(image, target);
+    let rendered = render_photon(scene).images;
+    for (((&v, image), target), &gain) in roles.training.iter().zip(&rendered).zip(targets).zip(&result.fit.gains) {
+        let mut image = crate::image::Image { data: image.data.iter().map(|x| x * gain).collect(), ..image.clone() };
+        respond(&mut image, result.fit.settings.threshold);
+        let score = super::protocol::Score::of(&image, target);
         let name = capture.views[v].name.clone();
         quality.push(Quality {
             camera: name,
@@ -112,6 +116,7 @@ fn write(
             height: image.height,
             psnr_db: score.psnr,
             rel_rmse: score.rel_rmse,
+            gain,
         });
     }
     let single = result.held_out.len() == 1;
@@ -130,6 +135,7 @@ fn write(
             height: h,
             psnr_db: held.score.psnr,
             rel_rmse: held.score.rel_rmse,
+            gain: 1.0,
         });
         eprintln!(
             "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",
