@@ -125,6 +125,8 @@ pub struct FitSettings {
     /// their gains, whose geometric mean over the training cameras is held
     /// at 1. A held-out camera's gain is that mean, 1, by this rule fixed
     /// in advance. Off: one gain for every camera, absorbed by the lights.
+    /// On by default: on the settings study's frames it gained 0.0-0.2 dB
+    /// on the scoring camera for every model.
     pub gains: bool,
     /// Seed of every render.
     pub seed: u64,
@@ -148,7 +150,7 @@ impl Default for FitSettings {
             threshold: 8.0 / 255.0,
             align: true,
             lights: 0,
-            gains: false,
+            gains: true,
             seed: 0,
         }
     }
@@ -714,6 +716,7 @@ mod tests {
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 "gains" => settings.gains,
+                "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
                 n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
                 _ => false,
             };
