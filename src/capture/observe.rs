@@ -128,7 +128,8 @@ mod tests {
             data: (0..10_000)
                 .map(|p| {
                     // Box-Muller: one normal number from two uniform ones.
-                    let normal = (-2.0 * (1.0 - rng.uniform()).ln()).sqrt() * (6.283185307179586 * rng.uniform()).cos();
+                    let normal =
+                        (-2.0 * (1.0 - rng.uniform()).ln()).sqrt() * (std::f64::consts::TAU * rng.uniform()).cos();
                     (p % 100) as f64 * 0.01 * (1.0 + t) + sigma * normal
                 })
                 .collect(),
