@@ -19,6 +19,11 @@ impl Image {
         Image { width, height, data: vec![0.0; width * height] }
     }
 
+    /// The image with `f` applied to every value.
+    pub fn map(&self, f: impl Fn(f64) -> f64) -> Image {
+        Image { width: self.width, height: self.height, data: self.data.iter().map(|&v| f(v)).collect() }
+    }
+
     /// The image averaged over `factor x factor`-pixel blocks (area
     /// downsampling; partial blocks at the right and bottom edges dropped).
     pub fn downsample(&self, factor: usize) -> Image {

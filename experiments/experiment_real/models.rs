@@ -5,7 +5,7 @@
 //! The figure frames' panels go to `views/` as their fits finish.
 
 use crate::figures::{self, FIGURE_FRAMES};
-use dualphoton::capture::fit::{FitSettings, ImageModel};
+use dualphoton::capture::fit::{training_rmse, FitSettings, ImageModel};
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::Capture;
@@ -86,7 +86,7 @@ pub fn run(
                 model: model.name().into(),
                 psnr_db: held.score.psnr,
                 rel_rmse: held.score.rel_rmse,
-                train_rmse: fitted.log.last().map_or(0.0, |r| r.image_mse.sqrt()),
+                train_rmse: training_rmse(fitted, &images.training.images[0]),
                 train_noise: noise,
                 fit_s: fitted.seconds,
                 render_s: held.render_s,

@@ -8,14 +8,13 @@
 //! `manifest.json`.
 
 use super::calibration;
-use super::fit::{respond, FitRow, FitSettings};
+use super::fit::{training_views, FitRow, FitSettings};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
 use super::Capture;
 use crate::error::{Error, Result};
 use crate::experiment::Run;
 use crate::io::rows::{fmt, write_rows};
 use crate::io::{npy, png};
-use crate::render::render_photon;
 use crate::scene::file;
 use serde::Serialize;
 use std::path::Path;
@@ -103,10 +102,8 @@ fn write(
     file::save(scene, &run.out, "scene")?;
     write_rows(&run.path("log.csv"), log)?;
     let mut quality = Vec::new();
-    let rendered = render_photon(scene).images;
-    for (((&v, image), target), &gain) in roles.training.iter().zip(&rendered).zip(targets).zip(&result.fit.gains) {
-        let mut image = crate::image::Image { data: image.data.iter().map(|x| x * gain).collect(), ..image.clone() };
-        respond(&mut image, result.fit.settings.threshold);
+    let views = training_views(&result.fit);
+    for (((&v, image), target), &gain) in roles.training.iter().zip(&views).zip(targets).zip(&result.fit.gains) {
         let score = super::protocol::Score::of(&image, target);
         let name = capture.views[v].name.clone();
         quality.push(Quality {
