@@ -131,9 +131,7 @@ fn density_at(grid: &Grid<f64>, p: &[D3; 3]) -> D3 {
         let mut at = [0usize; 3];
         for a in 0..3 {
             let n = grid.shape[2 - a];
-            if bits[a] == 1 && n == 1 {
-                weight = D3::from_re(0.0);
-            }
+            // On a one-voxel axis the upper corner's fraction is 0: it adds nothing.
             at[a] = lo_i[a] + bits[a].min(n - 1);
             weight *= if bits[a] == 1 { frac[a] } else { -frac[a] + 1.0 };
         }

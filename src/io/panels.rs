@@ -147,7 +147,9 @@ pub fn labelled_grid(
     let ph = rows.iter().flat_map(|(_, p)| p.iter().map(|b| b.height)).max().unwrap_or(0);
     // Text about 0.55 of its size wide per character: the canvas is wide enough for both lines.
     let text = |chars: usize, size: f64| (chars as f64 * size * 0.55) as usize + 2 * gap;
-    let w = (left + columns.len() * (pw + gap)).max(text(title.len(), 16.0)).max(text(caption.len(), 12.0));
+    // The last column's label may be wider than its panel: room for its half past the panel.
+    let overhang = columns.last().map_or(0, |name| text(name.len(), 12.0).saturating_sub(pw) / 2);
+    let w = (left + columns.len() * (pw + gap) + overhang).max(text(title.len(), 16.0)).max(text(caption.len(), 12.0));
     let mut svg = Svg::new(w, top + rows.len() * (ph + gap));
     svg.text(w as f64 / 2.0, 20.0, 16.0, Anchor::Middle, title);
     svg.text(w as f64 / 2.0, 40.0, 12.0, Anchor::Middle, caption);
