@@ -3,11 +3,14 @@
 //! held-out one: PSNR over a fixed crop at half resolution, relative RMSE
 //! beside it).
 //!
-//! This first stage scores the predictions that need no reconstruction, the
-//! floor any method must clear: an all-black image, and the training view
-//! nearest the held-out camera's direction used as it is.
+//! First the floor any method must clear, predictions that need no
+//! reconstruction (an all-black image, and the training view nearest the
+//! held-out camera's direction used as it is); then every frame fitted under
+//! each image model and its held-out view scored.
 //!
-//! Writes `results/scalarflow_real/{baselines.csv, summary.md, manifest.json}`.
+//! Writes `results/scalarflow_real/`: `baselines.csv`, `fits.csv` (appended
+//! frame by frame: a stopped run resumes), `summary.md`, `psnr_per_frame.svg`,
+//! `held_out_views.svg`, `density_slices.svg`, `manifest.json`.
 //! The capture is read from `--data` (never copied into the repository).
 
 mod figures;

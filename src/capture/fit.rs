@@ -767,6 +767,10 @@ mod tests {
                 "gains" => settings.gains,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
                 n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
+                n if n.starts_with("updates_") => {
+                    n["updates_".len()..].split('_').map(|u| u.parse().unwrap()).collect::<Vec<usize>>()
+                        == settings.updates
+                }
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 _ => false,
