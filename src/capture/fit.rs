@@ -20,7 +20,7 @@
 
 use super::align::offset;
 use super::lights::{flatten, single_image, step, Gathers};
-use super::observe::real_silhouette;
+use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use crate::error::{Error, Result};
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::image::Image;
@@ -119,6 +119,11 @@ pub struct FitSettings {
     /// level on, whenever the lights are fitted again; the offsets' mean
     /// over the cameras stays 0 (the calibration's average is kept).
     pub align: bool,
+    /// Dilation of the silhouettes (full-resolution pixels) once the
+    /// training cameras are aligned: from then on each level's hull is
+    /// carved through the aligned cameras with this margin. Before, the
+    /// margin is the calibration's disagreement ([`SILHOUETTE_MARGIN_PX`]).
+    pub aligned_margin: f64,
     /// Lights whose places are fitted ([`super::lights`]): from the second
     /// level on, the strongest this many candidates are kept and move
     /// whenever the lights are fitted again. 0: every candidate stays in
@@ -161,6 +166,7 @@ impl Default for FitSettings {
             albedo: 1.0,
             threshold: 8.0 / 255.0,
             align: true,
+            aligned_margin: SILHOUETTE_MARGIN_PX,
             lights: 0,
             gains: true,
             gamma: 1.0,
@@ -193,6 +199,9 @@ impl FitSettings {
         }
         if !(0.0..1.0).contains(&self.threshold) {
             return bad("threshold must be in [0, 1)");
+        }
+        if !(self.aligned_margin.is_finite() && self.aligned_margin >= 0.0) {
+            return bad("aligned_margin must be finite and >= 0");
         }
         if !(self.gamma.is_finite() && (0.25..=4.0).contains(&self.gamma)) {
             return bad("gamma must be in [0.25, 4]");
@@ -270,7 +279,7 @@ pub fn fit(
     settings.validate()?;
     let start = Instant::now();
     let (lo, hi) = smoke_box;
-    let silhouettes: Vec<Vec<bool>> = images.iter().map(|im| real_silhouette(im, settings.factor)).collect();
+    let codes = images;
     // The photographs through the inverse response: linear in the lights.
     let photographs: Vec<Image> = images.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect();
     let threshold = settings.threshold.powf(settings.gamma);
@@ -306,7 +315,10 @@ pub fn fit(
     for (level, &updates) in settings.updates.iter().enumerate() {
         let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
         let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
-        let hull = carve(&grid, cameras, &silhouettes);
+        let aligned = offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
+        let margin = if aligned { settings.aligned_margin } else { SILHOUETTE_MARGIN_PX };
+        let silhouettes: Vec<Vec<bool>> = codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
+        let hull = carve(&grid, &scene.cameras, &silhouettes);
         if !hull.iter().any(|&h| h) {
             return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
         }
@@ -771,6 +783,7 @@ mod tests {
                     n["updates_".len()..].split('_').map(|u| u.parse().unwrap()).collect::<Vec<usize>>()
                         == settings.updates
                 }
+                n if n.starts_with("margin_") => settings.aligned_margin.to_string() == n["margin_".len()..],
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 _ => false,

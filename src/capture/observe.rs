@@ -19,8 +19,9 @@ use crate::scene::Camera;
 /// above the capture's threshold (8) and its ringing (1-6).
 pub const SILHOUETTE_CODE: f64 = 12.0;
 
-/// Dilation of the silhouettes, in full-resolution pixels: the calibration's
-/// disagreement between cameras (up to about 40 pixels for ScalarFlow's).
+/// Dilation of the silhouettes, in full-resolution pixels, while the cameras
+/// are as calibrated: the calibration's disagreement between cameras (up to
+/// about 40 pixels for ScalarFlow's).
 pub const SILHOUETTE_MARGIN_PX: f64 = 40.0;
 
 /// The images of some cameras of a capture at one working resolution.
@@ -84,10 +85,10 @@ pub fn noise_of_three(frames: [&[Image]; 3]) -> f64 {
 
 /// The silhouette of a real frame (code value / 255) at 1/`factor` of the
 /// full resolution: pixels above [`SILHOUETTE_CODE`], dilated by
-/// [`SILHOUETTE_MARGIN_PX`] / `factor` pixels (a disc).
-pub fn real_silhouette(image: &Image, factor: usize) -> Vec<bool> {
+/// `margin_px` / `factor` pixels (a disc).
+pub fn real_silhouette(image: &Image, factor: usize, margin_px: f64) -> Vec<bool> {
     let seen: Vec<bool> = image.data.iter().map(|&v| v * 255.0 > SILHOUETTE_CODE).collect();
-    dilate(&seen, image.width, image.height, SILHOUETTE_MARGIN_PX / factor as f64)
+    dilate(&seen, image.width, image.height, margin_px / factor as f64)
 }
 
 /// `mask` grown by a disc of `radius` pixels.
@@ -144,7 +145,7 @@ mod tests {
         let mut image = Image::zeros(21, 21);
         image.data[10 * 21 + 10] = 100.0 / 255.0;
         image.data[0] = 6.0 / 255.0; // ringing
-        let sil = real_silhouette(&image, 10);
+        let sil = real_silhouette(&image, 10, 40.0);
         // Radius 4 pixels at a tenth of the resolution: (10 +- 4, 10) in, (13, 13) out (4.2 from the centre).
         assert!(sil[10 * 21 + 14] && sil[6 * 21 + 10] && !sil[10 * 21 + 15]);
         assert!(!sil[13 * 21 + 13] && sil[12 * 21 + 12]);
