@@ -86,7 +86,9 @@ pub struct FitSettings {
     /// Voxels along the smoke box's longest edge at the finest level.
     pub resolution: usize,
     /// Adam updates per level, coarsest first; each level doubles the
-    /// resolution of the one before, the last is at `resolution`.
+    /// resolution of the one before, the last is at `resolution`. On the
+    /// settings study's frames 80 at the finest level scored better than 40
+    /// and 160 (which fits the training cameras closer and the unseen one worse).
     pub updates: Vec<usize>,
     /// Adam step of the density, in units of the start's density.
     pub lr: f64,
@@ -123,6 +125,8 @@ pub struct FitSettings {
     /// training cameras are aligned: from then on each level's hull is
     /// carved through the aligned cameras with this margin. Before, the
     /// margin is the calibration's disagreement ([`SILHOUETTE_MARGIN_PX`]).
+    /// On the settings study's frames 20 scored best of 0, 8, 20 and 40
+    /// (0.3-0.5 dB over 40, every model).
     pub aligned_margin: f64,
     /// Lights whose places are fitted ([`super::lights`]): from the second
     /// level on, the strongest this many candidates are kept and move
@@ -155,7 +159,7 @@ impl Default for FitSettings {
             model: ImageModel::Multiple,
             factor: 8,
             resolution: 64,
-            updates: vec![40, 40, 40],
+            updates: vec![40, 40, 80],
             lr: 0.05,
             smoothness: 0.001,
             start_depth: 1.0,
@@ -166,7 +170,7 @@ impl Default for FitSettings {
             albedo: 1.0,
             threshold: 8.0 / 255.0,
             align: true,
-            aligned_margin: SILHOUETTE_MARGIN_PX,
+            aligned_margin: 20.0,
             lights: 0,
             gains: true,
             gamma: 1.0,
@@ -771,7 +775,8 @@ mod tests {
             settings.validate().unwrap();
             let name = path.file_stem().unwrap().to_string_lossy().into_owned();
             let d = FitSettings::default();
-            let changed = match name.as_str() {
+            // A name is one or more settings joined by '+'.
+            let says = |part: &str| match part {
                 "default" => settings == d,
                 "no_align" => !settings.align,
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
@@ -788,6 +793,7 @@ mod tests {
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 _ => false,
             };
+            let changed = name.split('+').all(says);
             assert!(changed, "{name}.json does not set what its name says");
             names.push(name);
         }
