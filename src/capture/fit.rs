@@ -22,6 +22,7 @@ use super::align::offset;
 use super::lights::{flatten, single_image, step, Gathers};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use crate::error::{Error, Result};
+use crate::grad::loss::mse;
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::image::Image;
 use crate::math::Vec3;
@@ -448,13 +449,8 @@ pub fn training_views(fit: &Fit) -> Vec<Image> {
 /// Root mean square difference, in code value / full scale, between the
 /// training cameras' views of a fitted frame and their photographs `images`.
 pub fn training_rmse(fit: &Fit, images: &[Image]) -> f64 {
-    let views = training_views(fit);
-    let (mut sum, mut n) = (0.0, 0usize);
-    for (view, photo) in views.iter().zip(images) {
-        sum += view.data.iter().zip(&photo.data).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
-        n += view.data.len();
-    }
-    (sum / n.max(1) as f64).sqrt()
+    let views: Vec<Vec<f64>> = training_views(fit).into_iter().map(|v| v.data).collect();
+    mse(&views, images).sqrt()
 }
 
 /// The grid's shape (Z, Y, X) over `lo..hi` with `longest` voxels along the

@@ -104,7 +104,7 @@ fn write(
     let mut quality = Vec::new();
     let views = training_views(&result.fit);
     for (((&v, image), target), &gain) in roles.training.iter().zip(&views).zip(targets).zip(&result.fit.gains) {
-        let score = super::protocol::Score::of(&image, target);
+        let score = super::protocol::Score::of(image, target);
         let name = capture.views[v].name.clone();
         quality.push(Quality {
             camera: name,
