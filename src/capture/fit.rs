@@ -7,8 +7,8 @@
 //! for a given density they follow exactly from a non-negative least-squares
 //! fit to one render per light and one of the emission alone. The density
 //! follows the images' reverse-mode gradient (Adam, projected to >= 0,
-//! inside the visual hull of the real silhouettes) plus a smoothness term,
-//! coarse to fine. The camera response is a power law shared by every
+//! inside the visual hull of the real silhouettes) plus the priors of
+//! [`super::priors`], coarse to fine. The camera response is a power law shared by every
 //! camera ([`FitSettings::gamma`]) and a gain per training camera; the
 //! held-out camera's response follows from a rule fixed in advance, never
 //! from its photograph.
@@ -21,6 +21,7 @@
 use super::align::offset;
 use super::lights::{flatten, single_image, step, Gathers};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
+use super::priors::{smoothness, sparsity};
 use crate::error::{Error, Result};
 use crate::grad::loss::mse;
 use crate::grad::reverse::{reverse_gradient, Subset};
@@ -97,6 +98,9 @@ pub struct FitSettings {
     /// pairs of the squared difference of their optical depth across one
     /// voxel, against the images' mean squared error.
     pub smoothness: f64,
+    /// Weight of the sparsity term ([`sparsity`]) against the images' mean
+    /// squared error.
+    pub sparsity: f64,
     /// Optical depth across the hull's mean chord at the start. On the
     /// settings study's frames (docs/real_captures.md) 1 and 2 scored best
     /// on the scoring camera, within 0.1 dB of each other for every model;
@@ -163,6 +167,7 @@ impl Default for FitSettings {
             updates: vec![40, 40, 80],
             lr: 0.05,
             smoothness: 0.001,
+            sparsity: 0.0,
             start_depth: 1.0,
             refit_every: 10,
             photons: 20_000,
@@ -195,6 +200,9 @@ impl FitSettings {
         }
         if !(self.smoothness.is_finite() && self.smoothness >= 0.0) {
             return bad("smoothness must be finite and >= 0");
+        }
+        if !(self.sparsity.is_finite() && self.sparsity >= 0.0) {
+            return bad("sparsity must be finite and >= 0");
         }
         if !(self.start_depth.is_finite() && self.start_depth > 0.0) {
             return bad("start_depth must be finite and > 0");
@@ -248,6 +256,8 @@ pub struct FitRow {
     pub image_mse: f64,
     /// The smoothness term.
     pub smoothness: f64,
+    /// The sparsity term.
+    pub sparsity: f64,
     /// Seconds since the fit began.
     pub seconds: f64,
 }
@@ -358,12 +368,9 @@ pub fn fit(
             let reverse = reverse_gradient(&frozen, &targets, Subset::full());
             last = Some(frozen.images.clone());
             let (smooth, smooth_grad) = smoothness(&density, &hull, settings.smoothness);
-            let grad: Vec<f64> = reverse
-                .grad
-                .iter()
-                .zip(&smooth_grad)
-                .zip(&hull)
-                .map(|((g, s), &inside)| if inside { g + s } else { 0.0 })
+            let (sparse, sparse_grad) = sparsity(&density, &hull, settings.sparsity);
+            let grad: Vec<f64> = (0..density.len())
+                .map(|v| if hull[v] { reverse.grad[v] + smooth_grad[v] + sparse_grad[v] } else { 0.0 })
                 .collect();
             if grad.iter().any(|g| !g.is_finite()) {
                 return Err(Error(format!("level {level}, update {update}: the gradient is not finite")));
@@ -375,6 +382,7 @@ pub fn fit(
                 update,
                 image_mse: reverse.loss,
                 smoothness: smooth,
+                sparsity: sparse,
                 seconds: start.elapsed().as_secs_f64(),
             };
             progress(&row);
@@ -495,61 +503,6 @@ fn mean_inside(density: &Grid<f64>, hull: &[bool]) -> f64 {
     let (sum, n) =
         density.data.iter().zip(hull).filter(|(_, &h)| h).fold((0.0, 0usize), |(s, n), (d, _)| (s + d, n + 1));
     sum / n.max(1) as f64
-}
-
-/// The smoothness term `weight * A / B^2` and its gradient: `A` the mean
-/// over neighbouring voxel pairs of `(h (rho_a - rho_b))^2` (h the voxel size
-/// along the pair's axis), `B` the mean of `h rho` over the hull. It does
-/// not change when the density is scaled, so it leaves the scale to the
-/// images (a term in `A` alone would pull every density towards 0 and
-/// every light up without bound, where nothing in the images resists).
-fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
-    let mut grad = vec![0.0; density.len()];
-    if weight == 0.0 {
-        return (0.0, grad);
-    }
-    let [nz, ny, nx] = density.shape;
-    let h = density.voxel_size();
-    let axes = [(h.z, nz, 0usize), (h.y, ny, 1), (h.x, nx, 2)];
-    let pairs: usize = axes.iter().map(|&(_, n, _)| density.len() / n * (n - 1)).sum();
-    let scale = 1.0 / pairs.max(1) as f64;
-    let mut sum = 0.0;
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let a = density.index(k, j, i);
-                for &(step, n, axis) in &axes {
-                    let (kk, jj, ii) = match axis {
-                        0 => (k + 1, j, i),
-                        1 => (k, j + 1, i),
-                        _ => (k, j, i + 1),
-                    };
-                    if [kk, jj, ii][axis] >= n {
-                        continue;
-                    }
-                    let b = density.index(kk, jj, ii);
-                    let d = step * (density.data[a] - density.data[b]);
-                    sum += d * d;
-                    grad[a] += 2.0 * scale * step * d;
-                    grad[b] -= 2.0 * scale * step * d;
-                }
-            }
-        }
-    }
-    // A = scale * sum with gradient `grad`; B = mean over the hull of h rho.
-    let h_mean = (h.x * h.y * h.z).cbrt();
-    let inside = hull.iter().filter(|&&x| x).count().max(1) as f64;
-    let b_sum: f64 = density.data.iter().zip(hull).filter(|(_, &x)| x).map(|(d, _)| d).sum();
-    let big_b = h_mean * b_sum / inside;
-    if big_b <= 0.0 {
-        return (0.0, vec![0.0; density.len()]);
-    }
-    let a_val = scale * sum;
-    let db = h_mean / inside;
-    for (g, &x) in grad.iter_mut().zip(hull) {
-        *g = weight * (*g / (big_b * big_b) - if x { 2.0 * a_val * db / big_b.powi(3) } else { 0.0 });
-    }
-    (weight * a_val / (big_b * big_b), grad)
 }
 
 /// One render per light of `scene` (intensity 1, no emission) and one of
@@ -776,6 +729,7 @@ mod tests {
                 "default" => settings == d,
                 "no_align" => !settings.align,
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
+                n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 "gains" => settings.gains,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
@@ -879,27 +833,5 @@ mod tests {
         let angle = |p: &Vec3| p.normalize().dot(&place.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
         let now = angle(&scene.lights[0].position);
         assert!(now < 2.0, "the light is {now:.1} degrees from its place (it started 25 degrees away)");
-    }
-
-    #[test]
-    fn the_smoothness_gradient_matches_finite_differences() {
-        let lo = Vec3::new(0.0, 0.0, 0.0);
-        let hi = Vec3::new(1.0, 2.0, 1.5);
-        let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
-        let grid = Grid::new(lo, hi, [3, 5, 4], data);
-        let hull: Vec<bool> = (0..60).map(|i| i % 7 != 3).collect();
-        let (_, grad) = smoothness(&grid, &hull, 0.7);
-        let (value, _) = smoothness(&grid, &hull, 0.7);
-        let scaled = grid.map(|d| 3.0 * d);
-        assert!((smoothness(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
-        for v in [0, 17, 59] {
-            let h = 1e-6;
-            let mut up = grid.clone();
-            up.data[v] += h;
-            let mut down = grid.clone();
-            down.data[v] -= h;
-            let fd = (smoothness(&up, &hull, 0.7).0 - smoothness(&down, &hull, 0.7).0) / (2.0 * h);
-            assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
-        }
     }
 }

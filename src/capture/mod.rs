@@ -11,6 +11,7 @@
 //!   (a camera's principal point, corrected).
 //! - [`fit`] fits one frame: the density, the lights' intensities and the
 //!   emission, under one of three image models.
+//! - [`priors`] are what the fit asks of a density beside the images.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
 //!   downsampling, a fixed crop, PSNR and relative RMSE.
@@ -23,6 +24,7 @@ pub mod frames;
 pub mod lights;
 pub mod observe;
 pub mod outputs;
+pub mod priors;
 pub mod protocol;
 
 use crate::math::Vec3;

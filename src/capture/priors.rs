@@ -1,0 +1,137 @@
+//! Priors on a real frame's density, beside the images: what four views
+//! leave open, these settle. Each is invariant to the density's scale (a
+//! term that is not would pull the density towards 0 and the lights up
+//! without bound where nothing in the images resists) and comes with its
+//! exact gradient.
+
+use crate::volume::Grid;
+
+/// The smoothness term `weight * A / B^2` and its gradient: `A` the mean
+/// over neighbouring voxel pairs of `(h (rho_a - rho_b))^2` (h the voxel size
+/// along the pair's axis), `B` the mean of `h rho` over the hull. It does
+/// not change when the density is scaled, so it leaves the scale to the
+/// images (a term in `A` alone would pull every density towards 0 and
+/// every light up without bound, where nothing in the images resists).
+pub fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
+    let mut grad = vec![0.0; density.len()];
+    if weight == 0.0 {
+        return (0.0, grad);
+    }
+    let [nz, ny, nx] = density.shape;
+    let h = density.voxel_size();
+    let axes = [(h.z, nz, 0usize), (h.y, ny, 1), (h.x, nx, 2)];
+    let pairs: usize = axes.iter().map(|&(_, n, _)| density.len() / n * (n - 1)).sum();
+    let scale = 1.0 / pairs.max(1) as f64;
+    let mut sum = 0.0;
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let a = density.index(k, j, i);
+                for &(step, n, axis) in &axes {
+                    let (kk, jj, ii) = match axis {
+                        0 => (k + 1, j, i),
+                        1 => (k, j + 1, i),
+                        _ => (k, j, i + 1),
+                    };
+                    if [kk, jj, ii][axis] >= n {
+                        continue;
+                    }
+                    let b = density.index(kk, jj, ii);
+                    let d = step * (density.data[a] - density.data[b]);
+                    sum += d * d;
+                    grad[a] += 2.0 * scale * step * d;
+                    grad[b] -= 2.0 * scale * step * d;
+                }
+            }
+        }
+    }
+    // A = scale * sum with gradient `grad`; B = mean over the hull of h rho.
+    let h_mean = (h.x * h.y * h.z).cbrt();
+    let inside = hull.iter().filter(|&&x| x).count().max(1) as f64;
+    let b_sum: f64 = density.data.iter().zip(hull).filter(|(_, &x)| x).map(|(d, _)| d).sum();
+    let big_b = h_mean * b_sum / inside;
+    if big_b <= 0.0 {
+        return (0.0, vec![0.0; density.len()]);
+    }
+    let a_val = scale * sum;
+    let db = h_mean / inside;
+    for (g, &x) in grad.iter_mut().zip(hull) {
+        *g = weight * (*g / (big_b * big_b) - if x { 2.0 * a_val * db / big_b.powi(3) } else { 0.0 });
+    }
+    (weight * a_val / (big_b * big_b), grad)
+}
+
+/// The sparsity term `weight * (mean rho)^2 / mean(rho^2)` over the hull
+/// and its gradient: 1 for a density spread evenly over the hull, towards 0
+/// as it gathers into fewer voxels. Few views leave copies of the smoke
+/// along their rays wherever the hull allows it (limited-angle tomography's
+/// ghosts); this term prefers the density that explains the images with
+/// less of it in places.
+pub fn sparsity(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
+    let mut grad = vec![0.0; density.len()];
+    let inside = density.data.iter().zip(hull).filter(|(_, &h)| h).map(|(d, _)| *d);
+    let (n, sum, sum2) = inside.fold((0.0, 0.0, 0.0), |(n, a, b), d| (n + 1.0, a + d, b + d * d));
+    if weight == 0.0 || sum2 <= 0.0 {
+        return (0.0, grad);
+    }
+    for ((g, &d), &h) in grad.iter_mut().zip(&density.data).zip(hull) {
+        if h {
+            *g = weight * 2.0 * sum / (n * sum2) * (1.0 - sum * d / sum2);
+        }
+    }
+    (weight * sum * sum / (n * sum2), grad)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+
+    #[test]
+    fn the_smoothness_gradient_matches_finite_differences() {
+        let lo = Vec3::new(0.0, 0.0, 0.0);
+        let hi = Vec3::new(1.0, 2.0, 1.5);
+        let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
+        let grid = Grid::new(lo, hi, [3, 5, 4], data);
+        let hull: Vec<bool> = (0..60).map(|i| i % 7 != 3).collect();
+        let (_, grad) = smoothness(&grid, &hull, 0.7);
+        let (value, _) = smoothness(&grid, &hull, 0.7);
+        let scaled = grid.map(|d| 3.0 * d);
+        assert!((smoothness(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
+        for v in [0, 17, 59] {
+            let h = 1e-6;
+            let mut up = grid.clone();
+            up.data[v] += h;
+            let mut down = grid.clone();
+            down.data[v] -= h;
+            let fd = (smoothness(&up, &hull, 0.7).0 - smoothness(&down, &hull, 0.7).0) / (2.0 * h);
+            assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
+        }
+    }
+
+    #[test]
+    fn the_sparsity_gradient_matches_finite_differences_and_prefers_fewer_voxels() {
+        let lo = Vec3::new(0.0, 0.0, 0.0);
+        let hi = Vec3::new(1.0, 2.0, 1.5);
+        let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
+        let grid = Grid::new(lo, hi, [3, 5, 4], data);
+        let hull: Vec<bool> = (0..60).map(|i| i % 7 != 3).collect();
+        let (value, grad) = sparsity(&grid, &hull, 0.7);
+        let scaled = grid.map(|d| 3.0 * d);
+        assert!((sparsity(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
+        let even = grid.map(|_| 2.0);
+        assert!((sparsity(&even, &hull, 0.7).0 - 0.7).abs() < 1e-12, "an even density is not 1");
+        let mut one = grid.map(|_| 0.0);
+        one.data[5] = 1.0;
+        assert!(sparsity(&one, &hull, 0.7).0 < 0.7 / 50.0, "one voxel is not near 0");
+        for v in [0, 17, 59] {
+            let h = 1e-6;
+            let mut up = grid.clone();
+            up.data[v] += h;
+            let mut down = grid.clone();
+            down.data[v] -= h;
+            let fd = (sparsity(&up, &hull, 0.7).0 - sparsity(&down, &hull, 0.7).0) / (2.0 * h);
+            assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
+        }
+    }
+}
