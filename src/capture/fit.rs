@@ -106,6 +106,8 @@ pub struct FitSettings {
     /// on the scoring camera, within 0.1 dB of each other for every model;
     /// 1 fits the training cameras better.
     pub start_depth: f64,
+    /// How the start's density is spread over the hull ([`StartShape`]).
+    pub start_shape: StartShape,
     /// The lights and emission are fitted again every this many updates.
     pub refit_every: usize,
     /// Photons per render (multiple scattering only).
@@ -158,6 +160,22 @@ pub struct FitSettings {
     pub seed: u64,
 }
 
+/// How the start's density is spread over the hull; its mean is set by
+/// [`FitSettings::start_depth`] either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StartShape {
+    /// The same density everywhere in the hull.
+    Even,
+    /// Each voxel in proportion to the darkest of the training photographs
+    /// where its centre appears: a soft hull that already carries the
+    /// plume's shape from every view.
+    Darkest,
+    /// Each voxel in proportion to the geometric mean of the training
+    /// photographs where its centre appears.
+    GeometricMean,
+}
+
 impl Default for FitSettings {
     fn default() -> Self {
         FitSettings {
@@ -169,6 +187,7 @@ impl Default for FitSettings {
             smoothness: 0.001,
             sparsity: 0.0,
             start_depth: 1.0,
+            start_shape: StartShape::Even,
             refit_every: 10,
             photons: 20_000,
             spp: 1,
@@ -338,7 +357,8 @@ pub fn fit(
             return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
         }
         let mut density = if level == 0 {
-            start_density(&grid, &hull, settings.start_depth)
+            let shape = start_shape(&grid, &hull, &scene.cameras, &photographs, settings.start_shape);
+            start_density(&grid, &shape, settings.start_depth)
         } else {
             upsample(&scene.density, &grid, &hull)
         };
@@ -472,13 +492,51 @@ fn grid_shape(lo: &Vec3, hi: &Vec3, longest: usize) -> [usize; 3] {
 
 /// The hull at a constant density whose optical depth across the hull's
 /// mean chord (its volume over its largest cross-section, roughly) is `depth`.
-fn start_density(grid: &Grid<f64>, hull: &[bool], depth: f64) -> Grid<f64> {
-    let inside = hull.iter().filter(|&&h| h).count() as f64;
+/// Per voxel, the start's relative density (0 outside the hull).
+fn start_shape(grid: &Grid<f64>, hull: &[bool], cameras: &[Camera], photos: &[Image], shape: StartShape) -> Vec<f64> {
+    let [nz, ny, nx] = grid.shape;
+    let mut out = vec![0.0; grid.len()];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let idx = grid.index(k, j, i);
+                if !hull[idx] {
+                    continue;
+                }
+                let centre = grid.voxel_center(k, j, i);
+                let seen = cameras.iter().zip(photos).map(|(camera, photo)| match camera.pixel_of(&centre) {
+                    Some((x, y)) => photo.data[y * photo.width + x].max(0.0),
+                    None => 0.0,
+                });
+                out[idx] = match shape {
+                    StartShape::Even => 1.0,
+                    StartShape::Darkest => seen.fold(f64::INFINITY, f64::min),
+                    StartShape::GeometricMean => {
+                        let logs: Vec<f64> = seen.map(|v| v.max(1e-6).ln()).collect();
+                        (logs.iter().sum::<f64>() / logs.len().max(1) as f64).exp()
+                    }
+                };
+            }
+        }
+    }
+    // Where every view is dark, the even start.
+    if out.iter().all(|&v| v <= 0.0) {
+        return hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect();
+    }
+    out
+}
+
+/// The start: `shape` scaled so that its mean over the hull (the voxels
+/// where `shape` may be > 0) is an optical depth of `depth` across the
+/// hull's mean chord.
+fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
+    let inside = shape.iter().filter(|&&s| s > 0.0).count().max(1) as f64;
+    let mean = shape.iter().sum::<f64>() / inside;
     let v = grid.voxel_size();
     let voxel = (v.x * v.y * v.z).cbrt();
     let chord = inside.cbrt() * voxel;
-    let rho = depth / chord;
-    Grid::new(grid.lo, grid.hi, grid.shape, hull.iter().map(|&h| if h { rho } else { 0.0 }).collect())
+    let rho = depth / chord / mean;
+    Grid::new(grid.lo, grid.hi, grid.shape, shape.iter().map(|&s| s * rho).collect())
 }
 
 /// `coarse` sampled at `grid`'s voxel centres (trilinear), 0 outside `hull`.
@@ -733,12 +791,18 @@ mod tests {
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 "gains" => settings.gains,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
+                n if n.starts_with("factor_") && !n.contains("res") => {
+                    settings.factor.to_string() == n["factor_".len()..]
+                }
+                n if n.starts_with("res_") => settings.resolution.to_string() == n["res_".len()..],
                 n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
                 n if n.starts_with("updates_") => {
                     n["updates_".len()..].split('_').map(|u| u.parse().unwrap()).collect::<Vec<usize>>()
                         == settings.updates
                 }
                 n if n.starts_with("margin_") => settings.aligned_margin.to_string() == n["margin_".len()..],
+                "darkest" => settings.start_shape == StartShape::Darkest,
+                "geometric_mean" => settings.start_shape == StartShape::GeometricMean,
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 _ => false,
