@@ -112,7 +112,10 @@ pub struct FitSettings {
     pub refit_every: usize,
     /// Photons per render (multiple scattering only).
     pub photons: u64,
-    /// Camera samples per pixel per update.
+    /// Camera samples per pixel per update. The lit models' pixels are
+    /// noisy at 1 (each sample gathers the light at one jittered point);
+    /// on the settings study's frames 2 gained 0.3 dB on the scoring camera
+    /// for multiple scattering over 1, and 4 and 8 no more than 2.
     pub spp: u32,
     /// Henyey-Greenstein asymmetry assumed for the fog.
     pub g: f64,
@@ -190,7 +193,7 @@ impl Default for FitSettings {
             start_shape: StartShape::Even,
             refit_every: 10,
             photons: 20_000,
-            spp: 1,
+            spp: 2,
             g: 0.6,
             albedo: 1.0,
             threshold: 8.0 / 255.0,
@@ -803,6 +806,8 @@ mod tests {
                 n if n.starts_with("margin_") => settings.aligned_margin.to_string() == n["margin_".len()..],
                 "darkest" => settings.start_shape == StartShape::Darkest,
                 "geometric_mean" => settings.start_shape == StartShape::GeometricMean,
+                n if n.starts_with("photons_") => settings.photons.to_string() == n["photons_".len()..],
+                n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 _ => false,
