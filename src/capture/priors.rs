@@ -65,8 +65,8 @@ pub fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<
 /// and its gradient: 1 for a density spread evenly over the hull, towards 0
 /// as it gathers into fewer voxels. Few views leave copies of the smoke
 /// along their rays wherever the hull allows it (limited-angle tomography's
-/// ghosts); this term prefers the density that explains the images with
-/// less of it in places.
+/// ghosts); among densities that explain the images alike, this term
+/// prefers the one gathered into fewer voxels.
 pub fn sparsity(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
     let mut grad = vec![0.0; density.len()];
     let inside = density.data.iter().zip(hull).filter(|(_, &h)| h).map(|(d, _)| *d);
