@@ -496,35 +496,22 @@ fn grid_shape(lo: &Vec3, hi: &Vec3, longest: usize) -> [usize; 3] {
     [n(e.z), n(e.y), n(e.x)]
 }
 
-/// The hull at a constant density whose optical depth across the hull's
-/// mean chord (its volume over its largest cross-section, roughly) is `depth`.
 /// Per voxel, the start's relative density (0 outside the hull).
 fn start_shape(grid: &Grid<f64>, hull: &[bool], cameras: &[Camera], photos: &[Image], shape: StartShape) -> Vec<f64> {
-    let [nz, ny, nx] = grid.shape;
-    let mut out = vec![0.0; grid.len()];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let idx = grid.index(k, j, i);
-                if !hull[idx] {
-                    continue;
-                }
-                let centre = grid.voxel_center(k, j, i);
-                let seen = cameras.iter().zip(photos).map(|(camera, photo)| match camera.pixel_of(&centre) {
-                    Some((x, y)) => photo.data[y * photo.width + x].max(0.0),
-                    None => 0.0,
-                });
-                out[idx] = match shape {
-                    StartShape::Even => 1.0,
-                    StartShape::Darkest => seen.fold(f64::INFINITY, f64::min),
-                    StartShape::GeometricMean => {
-                        let logs: Vec<f64> = seen.map(|v| v.max(1e-6).ln()).collect();
-                        (logs.iter().sum::<f64>() / logs.len().max(1) as f64).exp()
-                    }
-                };
+    let out = over_hull(grid, hull, |centre| {
+        let seen = cameras.iter().zip(photos).map(|(camera, photo)| match camera.pixel_of(&centre) {
+            Some((x, y)) => photo.data[y * photo.width + x].max(0.0),
+            None => 0.0,
+        });
+        match shape {
+            StartShape::Even => 1.0,
+            StartShape::Darkest => seen.fold(f64::INFINITY, f64::min),
+            StartShape::GeometricMean => {
+                let logs: Vec<f64> = seen.map(|v| v.max(1e-6).ln()).collect();
+                (logs.iter().sum::<f64>() / logs.len().max(1) as f64).exp()
             }
         }
-    }
+    });
     // Where every view is dark, the even start.
     if out.iter().all(|&v| v <= 0.0) {
         return hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect();
@@ -532,9 +519,9 @@ fn start_shape(grid: &Grid<f64>, hull: &[bool], cameras: &[Camera], photos: &[Im
     out
 }
 
-/// The start: `shape` scaled so that its mean over the hull (the voxels
-/// where `shape` may be > 0) is an optical depth of `depth` across the
-/// hull's mean chord.
+/// The start: `shape` scaled so that its mean over the voxels where it is
+/// positive is an optical depth of `depth` across their mean chord (their
+/// volume over their largest cross-section, roughly).
 fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
     let inside = shape.iter().filter(|&&s| s > 0.0).count().max(1) as f64;
     let mean = shape.iter().sum::<f64>() / inside;
@@ -547,19 +534,24 @@ fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
 
 /// `coarse` sampled at `grid`'s voxel centres (trilinear), 0 outside `hull`.
 fn upsample(coarse: &Grid<f64>, grid: &Grid<f64>, hull: &[bool]) -> Grid<f64> {
+    Grid::new(grid.lo, grid.hi, grid.shape, over_hull(grid, hull, |centre| coarse.at(&centre)))
+}
+
+/// `value` at the centre of every voxel of `grid` inside `hull`, 0 outside.
+fn over_hull(grid: &Grid<f64>, hull: &[bool], value: impl Fn(Vec3) -> f64) -> Vec<f64> {
     let [nz, ny, nx] = grid.shape;
-    let mut data = vec![0.0; grid.len()];
+    let mut out = vec![0.0; grid.len()];
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
                 let idx = grid.index(k, j, i);
                 if hull[idx] {
-                    data[idx] = coarse.at(&grid.voxel_center(k, j, i));
+                    out[idx] = value(grid.voxel_center(k, j, i));
                 }
             }
         }
     }
-    Grid::new(grid.lo, grid.hi, grid.shape, data)
+    out
 }
 
 /// Mean density over the hull's voxels.

@@ -87,51 +87,47 @@ mod tests {
     use super::*;
     use crate::math::Vec3;
 
-    #[test]
-    fn the_smoothness_gradient_matches_finite_differences() {
-        let lo = Vec3::new(0.0, 0.0, 0.0);
-        let hi = Vec3::new(1.0, 2.0, 1.5);
+    /// A prior on a small grid, and its hull.
+    fn small() -> (Grid<f64>, Vec<bool>) {
         let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
-        let grid = Grid::new(lo, hi, [3, 5, 4], data);
-        let hull: Vec<bool> = (0..60).map(|i| i % 7 != 3).collect();
-        let (_, grad) = smoothness(&grid, &hull, 0.7);
-        let (value, _) = smoothness(&grid, &hull, 0.7);
+        let grid = Grid::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 2.0, 1.5), [3, 5, 4], data);
+        (grid, (0..60).map(|i| i % 7 != 3).collect())
+    }
+
+    /// A prior's value and gradient from the density, the hull and the weight.
+    type Prior = fn(&Grid<f64>, &[bool], f64) -> (f64, Vec<f64>);
+
+    /// `prior` does not change when the density is scaled, and its gradient
+    /// matches central finite differences (inside and outside the hull).
+    fn check(prior: Prior) {
+        let (grid, hull) = small();
+        let (value, grad) = prior(&grid, &hull, 0.7);
         let scaled = grid.map(|d| 3.0 * d);
-        assert!((smoothness(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
+        assert!((prior(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
         for v in [0, 17, 59] {
             let h = 1e-6;
             let mut up = grid.clone();
             up.data[v] += h;
             let mut down = grid.clone();
             down.data[v] -= h;
-            let fd = (smoothness(&up, &hull, 0.7).0 - smoothness(&down, &hull, 0.7).0) / (2.0 * h);
+            let fd = (prior(&up, &hull, 0.7).0 - prior(&down, &hull, 0.7).0) / (2.0 * h);
             assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
         }
     }
 
     #[test]
+    fn the_smoothness_gradient_matches_finite_differences() {
+        check(smoothness);
+    }
+
+    #[test]
     fn the_sparsity_gradient_matches_finite_differences_and_prefers_fewer_voxels() {
-        let lo = Vec3::new(0.0, 0.0, 0.0);
-        let hi = Vec3::new(1.0, 2.0, 1.5);
-        let data: Vec<f64> = (0..60).map(|i| ((i * 37) % 11) as f64 * 0.3).collect();
-        let grid = Grid::new(lo, hi, [3, 5, 4], data);
-        let hull: Vec<bool> = (0..60).map(|i| i % 7 != 3).collect();
-        let (value, grad) = sparsity(&grid, &hull, 0.7);
-        let scaled = grid.map(|d| 3.0 * d);
-        assert!((sparsity(&scaled, &hull, 0.7).0 - value).abs() < 1e-12 * value, "not scale-invariant");
+        check(sparsity);
+        let (grid, hull) = small();
         let even = grid.map(|_| 2.0);
         assert!((sparsity(&even, &hull, 0.7).0 - 0.7).abs() < 1e-12, "an even density is not 1");
         let mut one = grid.map(|_| 0.0);
         one.data[5] = 1.0;
         assert!(sparsity(&one, &hull, 0.7).0 < 0.7 / 50.0, "one voxel is not near 0");
-        for v in [0, 17, 59] {
-            let h = 1e-6;
-            let mut up = grid.clone();
-            up.data[v] += h;
-            let mut down = grid.clone();
-            down.data[v] -= h;
-            let fd = (sparsity(&up, &hull, 0.7).0 - sparsity(&down, &hull, 0.7).0) / (2.0 * h);
-            assert!((fd - grad[v]).abs() < 1e-6 * fd.abs().max(1e-3), "voxel {v}: {fd} vs {}", grad[v]);
-        }
     }
 }
