@@ -154,6 +154,11 @@ pub struct FitSettings {
     /// On by default: on the settings study's frames it gained 0.0-0.2 dB
     /// on the scoring camera for every model.
     pub gains: bool,
+    /// Fit the emission beside the lights in the lit models: an ambient
+    /// term, light that reaches every voxel alike and unshadowed. With it,
+    /// the lit models contain emission-absorption (their lights all at 0).
+    /// Off: the lights must explain every pixel, with their shadows.
+    pub ambient: bool,
     /// The cameras' response curve, shared by all: a photograph's code
     /// value / full scale is the radiance (times the camera's gain) to the
     /// power 1/`gamma`. The fit works on the photographs to the power
@@ -204,6 +209,7 @@ impl Default for FitSettings {
             aligned_margin: 20.0,
             lights: 0,
             gains: true,
+            ambient: true,
             gamma: 1.0,
             seed: 0,
         }
@@ -352,6 +358,8 @@ pub fn fit(
     let mut offsets = vec![[0.0; 2]; cameras.len()];
     // Levenberg-Marquardt damping of the lights' places, kept between calls.
     let mut damping = 1e-3;
+    // Emission-absorption has no lights: its emission is its image.
+    let ambient = settings.ambient || !settings.model.lit();
     for (level, &updates) in settings.updates.iter().enumerate() {
         let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
         let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
@@ -378,13 +386,13 @@ pub fn fit(
                     align_cameras(&mut scene.cameras, &mut offsets, rendered, &images);
                 }
                 let targets = censored(&images, last.as_deref(), threshold, &gains);
-                let basis = fit_lights(&mut scene, &targets, &mut renders)?;
+                let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
                 if settings.gains && level > 0 {
                     fit_gains(&mut gains, &weights_of(&scene), &basis, &targets);
                     images = photographs.iter().zip(&gains).map(|(p, g)| p.map(|v| v / g)).collect();
                 }
                 if settings.lights > 0 && level > 0 && settings.model.lit() {
-                    place_lights(&mut scene, &targets, &basis, settings.lights, &mut damping, &mut renders);
+                    place_lights(&mut scene, &targets, &basis, settings.lights, ambient, &mut damping, &mut renders);
                 }
             }
             scene.render.seed = settings.seed.wrapping_add(renders);
@@ -417,7 +425,7 @@ pub fn fit(
         scene.density = density;
     }
     let targets = censored(&images, last.as_deref(), threshold, &gains);
-    fit_lights(&mut scene, &targets, &mut renders)?;
+    fit_lights(&mut scene, &targets, ambient, &mut renders)?;
     Ok(Fit { scene, settings: settings.clone(), offsets, gains, log, seconds: start.elapsed().as_secs_f64() })
 }
 
@@ -579,11 +587,11 @@ fn unit_renders(scene: &Scene, seed: u64) -> Vec<Vec<Image>> {
 /// non-negative least-squares fit to `targets`: the image is linear in
 /// them, so one render per light (intensity 1, no emission) and one of the
 /// emission alone give it exactly. Returns those renders.
-fn fit_lights(scene: &mut Scene, targets: &[Image], renders: &mut u64) -> Result<Vec<Vec<Image>>> {
+fn fit_lights(scene: &mut Scene, targets: &[Image], ambient: bool, renders: &mut u64) -> Result<Vec<Vec<Image>>> {
     let seed = scene.render.seed.wrapping_add(*renders);
     *renders += scene.lights.len() as u64 + 1;
     let basis = unit_renders(scene, seed);
-    let weights = nnls(&basis, targets);
+    let weights = light_weights(&basis, targets, ambient);
     if weights.iter().all(|&w| w == 0.0) {
         // Nothing rendered (the density has gone to 0 where the images are
         // black): the last intensities stay, so the density can grow back.
@@ -659,6 +667,7 @@ fn place_lights(
     targets: &[Image],
     basis: &[Vec<Image>],
     keep: usize,
+    ambient: bool,
     damping: &mut f64,
     renders: &mut u64,
 ) {
@@ -675,7 +684,7 @@ fn place_lights(
     let seed = scene.render.seed.wrapping_add(*renders);
     *renders += scene.lights.len() as u64 + 1;
     let basis = unit_renders(scene, seed);
-    let weights = nnls(&basis, targets);
+    let weights = light_weights(&basis, targets, ambient);
     if weights.iter().all(|&w| w == 0.0) {
         return;
     }
@@ -699,7 +708,7 @@ fn place_lights(
         trial.lights.iter_mut().zip(&moves).for_each(|(l, d)| l.position += d);
         if trial.lights.iter().all(|l| (l.position - centre).norm() > diagonal) {
             let trial_basis = unit_renders(&trial, seed);
-            let trial_weights = nnls(&trial_basis, targets);
+            let trial_weights = light_weights(&trial_basis, targets, ambient);
             if error(&residual(&trial_basis, &trial_weights, targets)) < before {
                 set_weights(&mut trial, &trial_weights);
                 *scene = trial;
@@ -709,6 +718,17 @@ fn place_lights(
         }
         *damping *= 4.0;
     }
+}
+
+/// The lights' intensities, then the emission, by [`nnls`] on `basis`
+/// (their unit renders); without `ambient` the emission is held at 0.
+fn light_weights(basis: &[Vec<Image>], targets: &[Image], ambient: bool) -> Vec<f64> {
+    if ambient {
+        return nnls(basis, targets);
+    }
+    let mut weights = nnls(&basis[..basis.len() - 1], targets);
+    weights.push(0.0);
+    weights
 }
 
 /// Non-negative weights `w` minimising `sum_pixels (sum_b w_b basis_b - target)^2`,
@@ -788,6 +808,7 @@ mod tests {
                 n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 "gains" => settings.gains,
+                "no_ambient" => !settings.ambient,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
                 n if n.starts_with("factor_") && !n.contains("res") => {
                     settings.factor.to_string() == n["factor_".len()..]
@@ -891,8 +912,8 @@ mod tests {
         scene.lights[0] = Light { position: start, intensity: 2.0 };
         let (mut damping, mut renders) = (1e-3, 0);
         for _ in 0..12 {
-            let basis = fit_lights(&mut scene, &targets, &mut renders).unwrap();
-            place_lights(&mut scene, &targets, &basis, 1, &mut damping, &mut renders);
+            let basis = fit_lights(&mut scene, &targets, true, &mut renders).unwrap();
+            place_lights(&mut scene, &targets, &basis, 1, true, &mut damping, &mut renders);
         }
         let angle = |p: &Vec3| p.normalize().dot(&place.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
         let now = angle(&scene.lights[0].position);
