@@ -40,6 +40,10 @@ pub struct FitResult {
     pub lights: String,
     #[serde(serialize_with = "fmt::e6")]
     pub emission: f64,
+    /// The lights' share of the training images' light, the rest the
+    /// emission's (lit models).
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub light_share: Option<f64>,
 }
 
 /// Fits every frame of `frames` under every model of `models`, scoring the
@@ -98,6 +102,7 @@ pub fn run(
                     .collect::<Vec<_>>()
                     .join(";"),
                 emission: fitted.scene.medium.emission,
+                light_share: fitted.light_share,
             };
             eprintln!(
                 "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} %, fit {:.0} s, render {:.0} s",
@@ -128,6 +133,10 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
             format!("{:.1}", 100.0 * mean(mine.iter().filter_map(|r| r.rel_rmse).collect())),
             format!("{:.2}", 255.0 * mean(mine.iter().map(|r| r.train_rmse).collect())),
             format!("{:.2}", 255.0 * mean(mine.iter().filter_map(|r| r.train_noise).collect())),
+            match mine.iter().filter_map(|r| r.light_share).collect::<Vec<_>>() {
+                shares if shares.is_empty() => String::new(),
+                shares => format!("{:.0}", 100.0 * mean(shares)),
+            },
             format!("{:.0}", mean(mine.iter().map(|r| r.fit_s + r.render_s).collect())),
             mine.len().to_string(),
         ]
@@ -139,6 +148,7 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
             "held-out relative RMSE (%)",
             "training RMSE (code values)",
             "training photographs' noise (code values)",
+            "the lights' share of the training images (%)",
             "seconds per frame",
             "frames",
         ],

@@ -308,6 +308,9 @@ pub struct Fit {
     pub gains: Vec<f64>,
     /// Per update.
     pub log: Vec<FitRow>,
+    /// The lights' share of the training images' light at the end, the
+    /// rest the emission's; `None` for emission-absorption, or with no light.
+    pub light_share: Option<f64>,
     /// Seconds the fit took.
     pub seconds: f64,
 }
@@ -425,8 +428,10 @@ pub fn fit(
         scene.density = density;
     }
     let targets = censored(&images, last.as_deref(), threshold, &gains);
-    fit_lights(&mut scene, &targets, ambient, &mut renders)?;
-    Ok(Fit { scene, settings: settings.clone(), offsets, gains, log, seconds: start.elapsed().as_secs_f64() })
+    let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
+    let light_share = if settings.model.lit() { light_share(&basis, &weights_of(&scene)) } else { None };
+    let seconds = start.elapsed().as_secs_f64();
+    Ok(Fit { scene, settings: settings.clone(), offsets, gains, log, light_share, seconds })
 }
 
 /// Moves every camera's principal point so that its photograph agrees
@@ -720,6 +725,16 @@ fn place_lights(
     }
 }
 
+/// The share of the lights (all `weights` but the last, the emission's) in
+/// the light of the images `basis` weighted by `weights`; `None` if there
+/// is none.
+fn light_share(basis: &[Vec<Image>], weights: &[f64]) -> Option<f64> {
+    let light = |b: &[Image]| b.iter().map(|im| im.data.iter().sum::<f64>()).sum::<f64>();
+    let parts: Vec<f64> = basis.iter().zip(weights).map(|(b, w)| w * light(b)).collect();
+    let total: f64 = parts.iter().sum();
+    (total > 0.0).then(|| parts[..parts.len() - 1].iter().sum::<f64>() / total)
+}
+
 /// The lights' intensities, then the emission, by [`nnls`] on `basis`
 /// (their unit renders); without `ambient` the emission is held at 0.
 fn light_weights(basis: &[Vec<Image>], targets: &[Image], ambient: bool) -> Vec<f64> {
@@ -777,6 +792,17 @@ pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_light_share_weighs_each_unit_render_by_its_intensity() {
+        let im = |v: Vec<f64>| vec![Image { width: v.len(), height: 1, data: v }];
+        // Two lights (light 1 and 2 units at intensity 1), then the emission (6 units at 1).
+        let basis = vec![im(vec![1.0, 0.0]), im(vec![0.5, 1.5]), im(vec![3.0, 3.0])];
+        let share = light_share(&basis, &[1.0, 1.0, 0.5]).unwrap();
+        assert!((share - 3.0 / 6.0).abs() < 1e-12, "{share}");
+        assert_eq!(light_share(&basis, &[0.0, 0.0, 2.0]), Some(0.0));
+        assert_eq!(light_share(&basis, &[0.0, 0.0, 0.0]), None);
+    }
 
     #[test]
     fn nnls_recovers_non_negative_weights_and_clips_negative_ones() {
