@@ -19,7 +19,7 @@
 //! attenuation in the images asks for it.
 
 use super::align::offset;
-use super::lights::{flatten, single_image, step, Gathers};
+use super::lighting::{candidate_lights, fit_gains, fit_lights, light_share, place_lights, weights_of};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use super::priors::{smoothness, sparsity};
 use crate::error::{Error, Result};
@@ -31,7 +31,7 @@ use crate::optim::Adam;
 use crate::recon::hull::carve;
 use crate::render::frozen::Frozen;
 use crate::render::render_photon;
-use crate::scene::{Camera, Light, Medium, RenderSettings, Scene};
+use crate::scene::{Camera, Medium, RenderSettings, Scene};
 use crate::volume::Grid;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -255,25 +255,6 @@ impl FitSettings {
         }
         Ok(())
     }
-}
-
-/// The candidate lights: far from the box (four times its half-diagonal
-/// from its centre), six around it 20 degrees above its centre (every 60
-/// degrees of azimuth about the up axis +y, starting at +x) plus one above
-/// and one below. Their intensities are fitted (most end at 0): a fixed
-/// basis able to express a few studio lights in unknown places.
-pub fn candidate_lights(lo: &Vec3, hi: &Vec3) -> Vec<Light> {
-    let centre = (lo + hi) / 2.0;
-    let distance = 2.0 * (hi - lo).norm();
-    let mut dirs: Vec<Vec3> = (0..6)
-        .map(|k| {
-            let (az, el) = ((k as f64 * 60.0).to_radians(), 20f64.to_radians());
-            Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin())
-        })
-        .collect();
-    dirs.push(Vec3::new(0.0, 1.0, 0.0));
-    dirs.push(Vec3::new(0.0, -1.0, 0.0));
-    dirs.into_iter().map(|d| Light { position: centre + d * distance, intensity: 0.0 }).collect()
 }
 
 /// One row of a fit's log.
@@ -574,200 +555,6 @@ fn mean_inside(density: &Grid<f64>, hull: &[bool]) -> f64 {
     sum / n.max(1) as f64
 }
 
-/// One render per light of `scene` (intensity 1, no emission) and one of
-/// the emission alone, the `b`-th from seed `seed + b`.
-fn unit_renders(scene: &Scene, seed: u64) -> Vec<Vec<Image>> {
-    (0..=scene.lights.len())
-        .map(|b| {
-            let mut one = scene.clone();
-            one.render.seed = seed.wrapping_add(b as u64);
-            one.medium.emission = if b == scene.lights.len() { 1.0 } else { 0.0 };
-            one.lights.iter_mut().enumerate().for_each(|(m, light)| light.intensity = if m == b { 1.0 } else { 0.0 });
-            render_photon(&one).images
-        })
-        .collect()
-}
-
-/// Sets the lights' intensities and the emission of `scene` to their
-/// non-negative least-squares fit to `targets`: the image is linear in
-/// them, so one render per light (intensity 1, no emission) and one of the
-/// emission alone give it exactly. Returns those renders.
-fn fit_lights(scene: &mut Scene, targets: &[Image], ambient: bool, renders: &mut u64) -> Result<Vec<Vec<Image>>> {
-    let seed = scene.render.seed.wrapping_add(*renders);
-    *renders += scene.lights.len() as u64 + 1;
-    let basis = unit_renders(scene, seed);
-    let weights = light_weights(&basis, targets, ambient);
-    if weights.iter().all(|&w| w == 0.0) {
-        // Nothing rendered (the density has gone to 0 where the images are
-        // black): the last intensities stay, so the density can grow back.
-        return Ok(basis);
-    }
-    set_weights(scene, &weights);
-    Ok(basis)
-}
-
-/// The lights' intensities, then the emission.
-fn set_weights(scene: &mut Scene, weights: &[f64]) {
-    for (light, w) in scene.lights.iter_mut().zip(weights) {
-        light.intensity = *w;
-    }
-    scene.medium.emission = *weights.last().unwrap();
-}
-
-/// The lights' intensities, then the emission, of `scene`: the weights of
-/// its unit renders.
-fn weights_of(scene: &Scene) -> Vec<f64> {
-    scene.lights.iter().map(|l| l.intensity).chain([scene.medium.emission]).collect()
-}
-
-/// Camera `c`'s render: `basis` (unit renders) weighted by `weights`.
-fn weighted(basis: &[Vec<Image>], weights: &[f64], c: usize) -> Vec<f64> {
-    let mut sum = vec![0.0; basis[0][c].data.len()];
-    for (b, w) in basis.iter().zip(weights) {
-        sum.iter_mut().zip(&b[c].data).for_each(|(s, v)| *s += w * v);
-    }
-    sum
-}
-
-/// `sum_b weights_b basis_b` minus `targets`, all cameras' pixels in order.
-fn residual(basis: &[Vec<Image>], weights: &[f64], targets: &[Image]) -> Vec<f64> {
-    (0..targets.len())
-        .flat_map(|c| {
-            weighted(basis, weights, c).into_iter().zip(&targets[c].data).map(|(r, t)| r - t).collect::<Vec<_>>()
-        })
-        .collect()
-}
-
-/// Multiplies every camera's gain by the least-squares scale of its render
-/// (`basis` weighted by `weights`: the lights' intensities, then the
-/// emission) onto its target (its photograph over its gain, censored),
-/// then divides all by their geometric mean, which the lights absorb: the
-/// render's level is the lights', the gains say only how the cameras differ.
-fn fit_gains(gains: &mut [f64], weights: &[f64], basis: &[Vec<Image>], targets: &[Image]) {
-    let fitted: Vec<f64> = (0..gains.len())
-        .map(|c| {
-            let render = weighted(basis, weights, c);
-            let rr: f64 = render.iter().map(|r| r * r).sum();
-            let rt: f64 = render.iter().zip(&targets[c].data).map(|(r, t)| r * t).sum();
-            if rr > 0.0 && rt > 0.0 {
-                gains[c] * rt / rr
-            } else {
-                gains[c]
-            }
-        })
-        .collect();
-    let mean = (fitted.iter().map(|g| g.ln()).sum::<f64>() / fitted.len() as f64).exp();
-    gains.iter_mut().zip(&fitted).for_each(|(g, f)| *g = f / mean);
-}
-
-/// Keeps the `keep` lights of `scene` that add most to the images (by
-/// `basis`, their renders at unit intensity), then moves them by one
-/// Levenberg-Marquardt step ([`super::lights`]) with `damping`, tried
-/// again with more damping (up to three times) until the renderer's
-/// images at the new places, intensities fitted again from renders of the
-/// same seeds, agree better with `targets`. A place within the box's
-/// diagonal of its centre is refused: the lights are outside the set.
-fn place_lights(
-    scene: &mut Scene,
-    targets: &[Image],
-    basis: &[Vec<Image>],
-    keep: usize,
-    ambient: bool,
-    damping: &mut f64,
-    renders: &mut u64,
-) {
-    if scene.lights.len() > keep {
-        let share = |l: usize| scene.lights[l].intensity * flatten(&basis[l]).iter().sum::<f64>();
-        let mut order: Vec<usize> = (0..scene.lights.len()).collect();
-        order.sort_by(|&a, &b| share(b).total_cmp(&share(a)));
-        let mut kept = order[..keep].to_vec();
-        kept.sort_unstable();
-        scene.lights = kept.iter().map(|&l| scene.lights[l].clone()).collect();
-    }
-    // Every image of this call from one seed: the trials differ from the
-    // current places by the places alone, not by the renders' noise.
-    let seed = scene.render.seed.wrapping_add(*renders);
-    *renders += scene.lights.len() as u64 + 1;
-    let basis = unit_renders(scene, seed);
-    let weights = light_weights(&basis, targets, ambient);
-    if weights.iter().all(|&w| w == 0.0) {
-        return;
-    }
-    set_weights(scene, &weights);
-    let error = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
-    let r = residual(&basis, &weights, targets);
-    let before = error(&r);
-    let (lo, hi) = (scene.density.lo, scene.density.hi);
-    let (centre, diagonal) = ((lo + hi) / 2.0, (hi - lo).norm());
-    let m = &scene.medium;
-    let gathers = Gathers::new(&scene.density, m.sigma_t_scale, m.albedo, &scene.cameras);
-    let singles: Vec<_> = scene
-        .lights
-        .iter()
-        .map(|l| single_image(&gathers, &scene.density, m.sigma_t_scale, m.g, &l.position))
-        .collect();
-    let linear: Vec<Vec<f64>> = basis.iter().map(|b| flatten(b)).collect();
-    for _ in 0..3 {
-        let Some(moves) = step(&r, &weights, &singles, &linear, *damping) else { break };
-        let mut trial = scene.clone();
-        trial.lights.iter_mut().zip(&moves).for_each(|(l, d)| l.position += d);
-        if trial.lights.iter().all(|l| (l.position - centre).norm() > diagonal) {
-            let trial_basis = unit_renders(&trial, seed);
-            let trial_weights = light_weights(&trial_basis, targets, ambient);
-            if error(&residual(&trial_basis, &trial_weights, targets)) < before {
-                set_weights(&mut trial, &trial_weights);
-                *scene = trial;
-                *damping = (*damping / 3.0).max(1e-6);
-                return;
-            }
-        }
-        *damping *= 4.0;
-    }
-}
-
-/// The share of the lights (all `weights` but the last, the emission's) in
-/// the light of the images `basis` weighted by `weights`; `None` if there
-/// is none.
-fn light_share(basis: &[Vec<Image>], weights: &[f64]) -> Option<f64> {
-    let light = |b: &[Image]| b.iter().map(|im| im.data.iter().sum::<f64>()).sum::<f64>();
-    let parts: Vec<f64> = basis.iter().zip(weights).map(|(b, w)| w * light(b)).collect();
-    let total: f64 = parts.iter().sum();
-    (total > 0.0).then(|| parts[..parts.len() - 1].iter().sum::<f64>() / total)
-}
-
-/// The lights' intensities, then the emission, by [`nnls`] on `basis`
-/// (their unit renders); without `ambient` the emission is held at 0.
-fn light_weights(basis: &[Vec<Image>], targets: &[Image], ambient: bool) -> Vec<f64> {
-    if ambient {
-        return nnls(basis, targets);
-    }
-    let mut weights = nnls(&basis[..basis.len() - 1], targets);
-    weights.push(0.0);
-    weights
-}
-
-/// Non-negative weights `w` minimising `sum_pixels (sum_b w_b basis_b - target)^2`,
-/// by cyclic coordinate descent on the normal equations (few unknowns).
-fn nnls(basis: &[Vec<Image>], targets: &[Image]) -> Vec<f64> {
-    let n = basis.len();
-    let dot = |a: &[Image], b: &[Image]| -> f64 {
-        a.iter().zip(b).map(|(x, y)| x.data.iter().zip(&y.data).map(|(p, q)| p * q).sum::<f64>()).sum()
-    };
-    let gram: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| dot(&basis[i], &basis[j])).collect()).collect();
-    let rhs: Vec<f64> = (0..n).map(|i| dot(&basis[i], targets)).collect();
-    let mut w = vec![0.0; n];
-    for _ in 0..2000 {
-        for i in 0..n {
-            if gram[i][i] <= 0.0 {
-                continue;
-            }
-            let r: f64 = rhs[i] - (0..n).map(|j| gram[i][j] * w[j]).sum::<f64>();
-            w[i] = (w[i] + r / gram[i][i]).max(0.0);
-        }
-    }
-    w
-}
-
 /// Photons of a rendered view of a fitted scene (multiple scattering only):
 /// more than an update's, so that the view's noise is far below the fit's error.
 pub const VIEW_PHOTONS: u64 = 200_000;
@@ -792,29 +579,6 @@ pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_light_share_weighs_each_unit_render_by_its_intensity() {
-        let im = |v: Vec<f64>| vec![Image { width: v.len(), height: 1, data: v }];
-        // Two lights (light 1 and 2 units at intensity 1), then the emission (6 units at 1).
-        let basis = vec![im(vec![1.0, 0.0]), im(vec![0.5, 1.5]), im(vec![3.0, 3.0])];
-        let share = light_share(&basis, &[1.0, 1.0, 0.5]).unwrap();
-        assert!((share - 3.0 / 6.0).abs() < 1e-12, "{share}");
-        assert_eq!(light_share(&basis, &[0.0, 0.0, 2.0]), Some(0.0));
-        assert_eq!(light_share(&basis, &[0.0, 0.0, 0.0]), None);
-    }
-
-    #[test]
-    fn nnls_recovers_non_negative_weights_and_clips_negative_ones() {
-        let im = |v: Vec<f64>| vec![Image { width: v.len(), height: 1, data: v }];
-        let basis = vec![im(vec![1.0, 0.0, 1.0]), im(vec![0.0, 1.0, 1.0]), im(vec![1.0, 1.0, 0.0])];
-        // target = 2 b0 + 0.5 b1: exact.
-        let w = nnls(&basis, &im(vec![2.0, 0.5, 2.5]));
-        assert!((w[0] - 2.0).abs() < 1e-9 && (w[1] - 0.5).abs() < 1e-9 && w[2].abs() < 1e-9, "{w:?}");
-        // target = b0 - b1 needs a negative weight: the fit keeps b1 at 0.
-        let w = nnls(&basis, &im(vec![1.0, -1.0, 0.0]));
-        assert!(w.iter().all(|&x| x >= 0.0) && w[1] == 0.0, "{w:?}");
-    }
 
     #[test]
     fn the_shipped_fit_settings_are_valid_and_change_what_their_names_say() {
@@ -876,73 +640,5 @@ mod tests {
         }
         let raw = respond(&linear, gain, &FitSettings::default());
         assert!((raw.data[3] - 0.9f64.powf(2.2)).abs() < 1e-12, "gamma 1 must pass radiance through: {raw:?}");
-    }
-
-    /// Two cameras whose photographs are their renders times 1.2 and 0.8
-    /// get gains in that ratio, of geometric mean 1.
-    #[test]
-    fn gains_recover_how_the_cameras_differ() {
-        let im = |v: Vec<f64>| Image { width: v.len(), height: 1, data: v };
-        let basis =
-            vec![vec![im(vec![0.1, 0.3, 0.0]), im(vec![0.2, 0.0, 0.1])], vec![im(vec![0.05; 3]), im(vec![0.02; 3])]];
-        let weights = [2.0, 1.5];
-        let render =
-            |c: usize| -> Vec<f64> { (0..3).map(|p| 2.0 * basis[0][c].data[p] + 1.5 * basis[1][c].data[p]).collect() };
-        let photographs =
-            vec![im(render(0).iter().map(|v| 1.2 * v).collect()), im(render(1).iter().map(|v| 0.8 * v).collect())];
-        let mut gains = vec![1.0; 2];
-        fit_gains(&mut gains, &weights, &basis, &photographs);
-        let mean = (0.96f64).sqrt();
-        assert!((gains[0] - 1.2 / mean).abs() < 1e-12 && (gains[1] - 0.8 / mean).abs() < 1e-12, "{gains:?}");
-    }
-
-    /// A light put 25 degrees away from where it lit the target images
-    /// (and too weak) is moved back towards its place.
-    #[test]
-    fn a_misplaced_light_moves_back_towards_its_place() {
-        use crate::scene::Lens;
-        let (lo, hi) = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
-        let mut density = Grid::new(lo, hi, [10, 10, 10], vec![0.0; 1000]);
-        for k in 0..10 {
-            for j in 0..10 {
-                for i in 0..10 {
-                    let c = density.voxel_center(k, j, i);
-                    let v = density.index(k, j, i);
-                    density.data[v] = 4.0 * (1.0 - (c.norm() / 0.45).powi(2)).max(0.0) * (1.0 + c.x);
-                }
-            }
-        }
-        let camera = |x: f64, z: f64| Camera {
-            position: Vec3::new(x, 0.1, z),
-            look_at: Vec3::zeros(),
-            up: Vec3::new(0.0, 1.0, 0.0),
-            lens: Lens::Pinhole { fx: 60.0, fy: 60.0, cx: 12.0, cy: 12.0 },
-            width: 24,
-            height: 24,
-        };
-        let place = Vec3::new(2.5, 1.0, 1.0);
-        let mut scene = Scene {
-            density,
-            medium: Medium { sigma_t_scale: 1.0, albedo: 1.0, g: 0.6, max_order: 1, emission: 0.0 },
-            lights: vec![Light { position: place, intensity: 5.0 }],
-            cameras: vec![camera(0.0, 3.0), camera(3.0, 0.0), camera(-2.1, 2.1)],
-            render: RenderSettings { photons: 0, spp: 4, ..RenderSettings::default() },
-        };
-        let targets = render_photon(&scene).images;
-        let turn = 25f64.to_radians();
-        let start = Vec3::new(
-            place.x * turn.cos() - place.z * turn.sin(),
-            place.y,
-            place.x * turn.sin() + place.z * turn.cos(),
-        );
-        scene.lights[0] = Light { position: start, intensity: 2.0 };
-        let (mut damping, mut renders) = (1e-3, 0);
-        for _ in 0..12 {
-            let basis = fit_lights(&mut scene, &targets, true, &mut renders).unwrap();
-            place_lights(&mut scene, &targets, &basis, 1, true, &mut damping, &mut renders);
-        }
-        let angle = |p: &Vec3| p.normalize().dot(&place.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
-        let now = angle(&scene.lights[0].position);
-        assert!(now < 2.0, "the light is {now:.1} degrees from its place (it started 25 degrees away)");
     }
 }

@@ -11,6 +11,9 @@
 //!   (a camera's principal point, corrected).
 //! - [`fit`] fits one frame: the density, the lights' intensities and the
 //!   emission, under one of three image models.
+//! - [`lighting`] is the fit's lighting and the cameras' gains: candidate
+//!   lights and an ambient term, fitted by least squares on their renders;
+//!   [`lights`] gives the image's derivatives in a light's place.
 //! - [`priors`] are what the fit asks of a density beside the images.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
@@ -21,6 +24,7 @@ pub mod calibration;
 pub mod fit;
 pub mod frame;
 pub mod frames;
+pub mod lighting;
 pub mod lights;
 pub mod observe;
 pub mod outputs;
