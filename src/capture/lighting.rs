@@ -140,9 +140,9 @@ pub(super) fn place_lights(
     renders: &mut u64,
 ) {
     if scene.lights.len() > keep {
-        let share = |l: usize| scene.lights[l].intensity * flatten(&basis[l]).iter().sum::<f64>();
+        let share = parts(basis, &weights_of(scene));
         let mut order: Vec<usize> = (0..scene.lights.len()).collect();
-        order.sort_by(|&a, &b| share(b).total_cmp(&share(a)));
+        order.sort_by(|&a, &b| share[b].total_cmp(&share[a]));
         let mut kept = order[..keep].to_vec();
         kept.sort_unstable();
         scene.lights = kept.iter().map(|&l| scene.lights[l].clone()).collect();
@@ -192,10 +192,15 @@ pub(super) fn place_lights(
 /// the light of the images `basis` weighted by `weights`; `None` if there
 /// is none.
 pub(super) fn light_share(basis: &[Vec<Image>], weights: &[f64]) -> Option<f64> {
-    let light = |b: &[Image]| b.iter().map(|im| im.data.iter().sum::<f64>()).sum::<f64>();
-    let parts: Vec<f64> = basis.iter().zip(weights).map(|(b, w)| w * light(b)).collect();
+    let parts = parts(basis, weights);
     let total: f64 = parts.iter().sum();
     (total > 0.0).then(|| parts[..parts.len() - 1].iter().sum::<f64>() / total)
+}
+
+/// Each unit render's part of the light of the images `basis` weighted by
+/// `weights`: its weight times its pixels' sum over all cameras.
+fn parts(basis: &[Vec<Image>], weights: &[f64]) -> Vec<f64> {
+    basis.iter().zip(weights).map(|(b, w)| w * b.iter().flat_map(|im| &im.data).sum::<f64>()).collect()
 }
 
 /// The lights' intensities, then the emission, by [`nnls`] on `basis`
