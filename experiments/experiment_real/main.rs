@@ -33,6 +33,10 @@ struct Args {
     /// The capture: its info.json (or transforms.json), or the folder holding it.
     #[arg(long)]
     data: PathBuf,
+    /// ScalarFlow's own camera file (GlobTrans's scalaFlow_cameras.json): each camera's focal length from
+    /// its vertical field of view instead of the calibration's horizontal one; the poses stay.
+    #[arg(long)]
+    focal_lengths: Option<PathBuf>,
     /// Frames scored.
     #[arg(long, value_delimiter = ',', default_value = "0,10,20,30,40,50,60,70,80,90,100,110,119")]
     frames: Vec<usize>,
@@ -69,7 +73,7 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> Result<()> {
-    let capture = calibration::load(&calibration::locate(&args.data))?;
+    let capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
     let fit_settings = match &args.fit_settings {
         Some(path) => {

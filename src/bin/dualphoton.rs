@@ -166,6 +166,10 @@ struct FitArgs {
     /// The frame of --capture to fit.
     #[arg(long, requires = "capture")]
     frame: Option<usize>,
+    /// ScalarFlow's own camera file (GlobTrans's scalaFlow_cameras.json): each camera of --capture gets
+    /// the focal length of its vertical field of view instead of the calibration's horizontal one.
+    #[arg(long, requires = "capture")]
+    focal_lengths: Option<PathBuf>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -308,7 +312,13 @@ fn fit(a: FitArgs) -> Result<()> {
     if let Some(capture) = &a.capture {
         let frame = a.frame.ok_or_else(|| Error::new("--frame: give the frame of --capture to fit"))?;
         let settings = FitSettings { seed: a.seed, ..FitSettings::default() };
-        return dualphoton::capture::outputs::fit_and_write(capture, frame, &settings, &a.out);
+        return dualphoton::capture::outputs::fit_and_write(
+            capture,
+            a.focal_lengths.as_deref(),
+            frame,
+            &settings,
+            &a.out,
+        );
     }
     a.method.check()?;
     let (Some(scene), Some(images)) = (&a.scene, &a.images) else {

@@ -52,6 +52,17 @@ pub fn locate(path: &Path) -> PathBuf {
     }
 }
 
+/// The capture whose calibration is at `path` (a file or the folder holding
+/// it, see [`locate`]), with the focal lengths of ScalarFlow's camera file
+/// `focal_lengths` if given ([`super::scalarflow_cameras`]).
+pub fn open(path: &Path, focal_lengths: Option<&Path>) -> Result<Capture> {
+    let mut capture = load(&locate(path))?;
+    if let Some(file) = focal_lengths {
+        super::scalarflow_cameras::refocus(&mut capture, file).map_err(|e| Error(format!("--focal-lengths: {e}")))?;
+    }
+    Ok(capture)
+}
+
 /// The capture described by the calibration file at `path`. Errors name the
 /// file and the field: unreadable, neither form, a matrix that is not a
 /// rotation and translation, a field of view outside (0, pi), a frame source

@@ -30,6 +30,7 @@ pub mod observe;
 pub mod outputs;
 pub mod priors;
 pub mod protocol;
+pub mod scalarflow_cameras;
 
 use crate::math::Vec3;
 use crate::scene::Camera;

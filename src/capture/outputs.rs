@@ -10,6 +10,7 @@
 use super::calibration;
 use super::fit::{training_views, FitRow, FitSettings};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
+use super::scalarflow_cameras::refocus;
 use super::Capture;
 use crate::error::{Error, Result};
 use crate::experiment::Run;
@@ -40,6 +41,7 @@ struct Quality {
 #[derive(Serialize)]
 struct Settings<'a> {
     capture: &'a Path,
+    focal_lengths: Option<&'a Path>,
     frame: usize,
     fit: &'a FitSettings,
     /// The density grid's box (capture units) and shape (Z, Y, X).
@@ -51,10 +53,20 @@ struct Settings<'a> {
 }
 
 /// Fits frame `frame` of the capture at `calibration_path` (a file or the
-/// folder holding it) and writes everything into `out`.
-pub fn fit_and_write(calibration_path: &Path, frame: usize, settings: &FitSettings, out: &Path) -> Result<()> {
+/// folder holding it), with the focal lengths of ScalarFlow's camera file
+/// `focal_lengths` if given, and writes everything into `out`.
+pub fn fit_and_write(
+    calibration_path: &Path,
+    focal_lengths: Option<&Path>,
+    frame: usize,
+    settings: &FitSettings,
+    out: &Path,
+) -> Result<()> {
     let path = calibration::locate(calibration_path);
-    let capture = calibration::load(&path).map_err(|e| Error(format!("--capture: {e}")))?;
+    let mut capture = calibration::load(&path).map_err(|e| Error(format!("--capture: {e}")))?;
+    if let Some(file) = focal_lengths {
+        refocus(&mut capture, file).map_err(|e| Error(format!("--focal-lengths: {e}")))?;
+    }
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
@@ -77,6 +89,7 @@ pub fn fit_and_write(calibration_path: &Path, frame: usize, settings: &FitSettin
     let d = &scene.density;
     run.write_manifest(&Settings {
         capture: &path,
+        focal_lengths,
         frame,
         fit: settings,
         bbox_min: [d.lo.x, d.lo.y, d.lo.z],
