@@ -64,7 +64,8 @@ fn read(path: &Path) -> Result<Vec<(String, Vec3, Option<f64>)>> {
         bail!("not a ScalarFlow camera file (an object of cameras, each with position and fov_vertical)");
     };
     let mut cameras = Vec::new();
-    for (name, entry) in entries {
+    // Cameras are the objects; the other entries summarise them (`focus`, averages).
+    for (name, entry) in entries.iter().filter(|(_, e)| e.is_object()) {
         let fields = Fields::lenient(entry, name)?;
         let p: [f64; 3] = fields.required("position")?;
         // GlobTrans writes null where it has no field of view.
@@ -132,7 +133,8 @@ mod tests {
         // ScalarFlow's frame negates z; the file lists the cameras in another order.
         let path = file(
             "cameras.json",
-            r#"{"0": {"position": [1.0, 0.0, -0.5], "fov_vertical": 90.0, "fov_horizontal": null},
+            r#"{"focus": [0.3, 0.4, 0.2], "fov_vertical_average": 40.7,
+                "0": {"position": [1.0, 0.0, -0.5], "fov_vertical": 90.0, "fov_horizontal": null},
                 "1": {"position": [0.0, 0.0, -1.0], "fov_vertical": 40.0}}"#,
         );
         refocus(&mut capture, &path).unwrap();
@@ -175,5 +177,7 @@ mod tests {
         assert!(refocus(&mut capture.clone(), &wide).unwrap_err().0.contains("(0, 180)"));
         let list = file("list.json", "[1, 2]");
         assert!(refocus(&mut capture.clone(), &list).unwrap_err().0.contains("not a ScalarFlow camera file"));
+        let summary_only = file("summary.json", r#"{"focus": [0.3, 0.4, 0.2]}"#);
+        assert!(refocus(&mut capture.clone(), &summary_only).unwrap_err().0.contains("no cameras"));
     }
 }
