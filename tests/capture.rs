@@ -315,6 +315,23 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     let bad = fit("2");
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("frame 2 is out of range"), "{err}");
+    // A ScalarFlow camera file without the capture's cameras.
+    let cameras = dir.join("cameras.json");
+    std::fs::write(&cameras, json!({"0": {"position": [9.0, 9.0, 9.0], "fov_vertical": 40.0}}).to_string()).unwrap();
+    let bad = std::process::Command::new(exe)
+        .args(["fit", "--capture"])
+        .arg(dir.join("info.json"))
+        .arg("--focal-lengths")
+        .arg(&cameras)
+        .args(["--frame", "0", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("--focal-lengths") && err.contains("no camera at a's position"),
+        "{err}"
+    );
     assert!(!out.exists(), "a bad capture is refused before any output");
     let ok = fit("1");
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
