@@ -18,7 +18,7 @@
 //! [`FitSettings::start_depth`] across the hull) and moves only where
 //! attenuation in the images asks for it.
 
-use super::align::offset;
+use super::align::warp;
 use super::lighting::{candidate_lights, fit_gains, fit_lights, light_share, place_lights, weights_of};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use super::priors::{smoothness, sparsity};
@@ -134,6 +134,11 @@ pub struct FitSettings {
     /// level on, whenever the lights are fitted again; the offsets' mean
     /// over the cameras stays 0 (the calibration's average is kept).
     pub align: bool,
+    /// With `align`, also correct every training camera's focal lengths by
+    /// the magnification that best moves its photograph onto the render,
+    /// about its principal point; the magnifications' geometric mean over
+    /// the cameras stays 1. A held-out camera keeps its calibration's.
+    pub zoom: bool,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
     /// carved through the aligned cameras with this margin. Before, the
@@ -206,6 +211,7 @@ impl Default for FitSettings {
             albedo: 1.0,
             threshold: 8.0 / 255.0,
             align: true,
+            zoom: false,
             aligned_margin: 20.0,
             lights: 0,
             gains: true,
@@ -285,6 +291,9 @@ pub struct Fit {
     /// Per training camera, how far its principal point was moved (working
     /// resolution pixels, right and down).
     pub offsets: Vec<[f64; 2]>,
+    /// Per training camera, the factor its focal lengths were multiplied by
+    /// (1 without `zoom`).
+    pub zooms: Vec<f64>,
     /// Per training camera, its gain: its photograph is its render times it.
     pub gains: Vec<f64>,
     /// Per update.
@@ -340,6 +349,7 @@ pub fn fit(
     // The last update's images: where the lights are fitted again, they censor the targets.
     let mut last: Option<Vec<Image>> = None;
     let mut offsets = vec![[0.0; 2]; cameras.len()];
+    let mut zooms = vec![1.0; cameras.len()];
     // Levenberg-Marquardt damping of the lights' places, kept between calls.
     let mut damping = 1e-3;
     // Emission-absorption has no lights: its emission is its image.
@@ -367,7 +377,7 @@ pub fn fit(
             scene.density = density.clone();
             if update % settings.refit_every == 0 {
                 if let (true, true, Some(rendered)) = (settings.align, level > 0, &last) {
-                    align_cameras(&mut scene.cameras, &mut offsets, rendered, &images);
+                    align_cameras(&mut scene.cameras, &mut offsets, &mut zooms, settings.zoom, rendered, &images);
                 }
                 let targets = censored(&images, last.as_deref(), threshold, &gains);
                 let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
@@ -412,19 +422,40 @@ pub fn fit(
     let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
     let light_share = if settings.model.lit() { light_share(&basis, &weights_of(&scene)) } else { None };
     let seconds = start.elapsed().as_secs_f64();
-    Ok(Fit { scene, settings: settings.clone(), offsets, gains, log, light_share, seconds })
+    Ok(Fit { scene, settings: settings.clone(), offsets, zooms, gains, log, light_share, seconds })
 }
 
-/// Moves every camera's principal point so that its photograph agrees
-/// with `rendered` (its render before the move), keeping the mean move 0.
-fn align_cameras(cameras: &mut [Camera], offsets: &mut [[f64; 2]], rendered: &[Image], photos: &[Image]) {
-    let moves: Vec<[f64; 2]> = rendered.iter().zip(photos).map(|(r, p)| offset(r, p, [0.0, 0.0])).collect();
-    let n = moves.len() as f64;
-    let mean = [moves.iter().map(|m| m[0]).sum::<f64>() / n, moves.iter().map(|m| m[1]).sum::<f64>() / n];
-    for ((camera, total), m) in cameras.iter_mut().zip(offsets).zip(&moves) {
-        let (dx, dy) = (m[0] - mean[0], m[1] - mean[1]);
-        *camera = camera.shift(dx, dy);
+/// Moves every camera's principal point (and with `zoom` scales its focal
+/// lengths) so that its photograph agrees with `rendered` (its render
+/// before the move), keeping the mean move 0 and the magnifications'
+/// geometric mean 1: a shift or magnification shared by every camera is
+/// the density's to explain, not the cameras'.
+fn align_cameras(
+    cameras: &mut [Camera],
+    offsets: &mut [[f64; 2]],
+    zooms: &mut [f64],
+    zoom: bool,
+    rendered: &[Image],
+    photos: &[Image],
+) {
+    let warps: Vec<_> = rendered
+        .iter()
+        .zip(photos)
+        .zip(cameras.iter())
+        .map(|((r, p), c)| {
+            let [_, _, cx, cy] = c.intrinsics();
+            warp(r, p, [cx, cy], zoom)
+        })
+        .collect();
+    let n = warps.len() as f64;
+    let mean = [0, 1].map(|a| warps.iter().map(|w| w.offset[a]).sum::<f64>() / n);
+    let log_mean = warps.iter().map(|w| (1.0 + w.zoom).ln()).sum::<f64>() / n;
+    for (((camera, total), factor), w) in cameras.iter_mut().zip(offsets).zip(zooms).zip(&warps) {
+        let (dx, dy) = (w.offset[0] - mean[0], w.offset[1] - mean[1]);
+        let k = (1.0 + w.zoom) / log_mean.exp();
+        *camera = camera.shift(dx, dy).zoom(k);
         *total = [total[0] + dx, total[1] + dy];
+        *factor *= k;
     }
 }
 
@@ -594,6 +625,7 @@ mod tests {
             let says = |part: &str| match part {
                 "default" => settings == d,
                 "no_align" => !settings.align,
+                "zoom" => settings.zoom && settings.align,
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
                 n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],

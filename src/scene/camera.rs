@@ -123,6 +123,13 @@ impl Camera {
         Camera { lens: Lens::Pinhole { fx, fy, cx: cx + dx, cy: cy + dy }, ..self.clone() }
     }
 
+    /// The same camera with its focal lengths `k` times as long: its image
+    /// magnified `k` times about the principal point.
+    pub fn zoom(&self, k: f64) -> Camera {
+        let [fx, fy, cx, cy] = self.intrinsics();
+        Camera { lens: Lens::Pinhole { fx: fx * k, fy: fy * k, cx, cy }, ..self.clone() }
+    }
+
     /// The same camera for the image averaged over `factor` x `factor`
     /// blocks (a partial block at the right or bottom edge is dropped): new
     /// pixel `(u, v)` covers old pixels `factor*u .. factor*(u+1)`, so every
@@ -193,5 +200,8 @@ mod tests {
         assert_eq!((half.width, half.height), (32, 24));
         let (xh, yh) = half.project(&p).unwrap();
         assert!((xh - x / 2.0).abs() < 1e-9 && (yh - y / 2.0).abs() < 1e-9);
+        // Zooming magnifies the image about the principal point.
+        let (xz, yz) = full.zoom(1.1).project(&p).unwrap();
+        assert!((xz - (30.5 + 1.1 * (x - 30.5))).abs() < 1e-9 && (yz - (20.0 + 1.1 * (y - 20.0))).abs() < 1e-9);
     }
 }
