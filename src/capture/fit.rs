@@ -137,7 +137,9 @@ pub struct FitSettings {
     /// With `align`, also correct every training camera's focal lengths by
     /// the magnification that best moves its photograph onto the render,
     /// about its principal point; the magnifications' geometric mean over
-    /// the cameras stays 1. A held-out camera keeps its calibration's.
+    /// the cameras stays 1. A held-out camera keeps its calibration's, by
+    /// this rule fixed in advance. On by default: on the settings study's
+    /// frames it gained 0.7-0.85 dB on the scoring camera for every model.
     pub zoom: bool,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
@@ -211,7 +213,7 @@ impl Default for FitSettings {
             albedo: 1.0,
             threshold: 8.0 / 255.0,
             align: true,
-            zoom: false,
+            zoom: true,
             aligned_margin: 20.0,
             lights: 0,
             gains: true,
@@ -626,6 +628,7 @@ mod tests {
                 "default" => settings == d,
                 "no_align" => !settings.align,
                 "zoom" => settings.zoom && settings.align,
+                "no_zoom" => !settings.zoom,
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
                 n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
