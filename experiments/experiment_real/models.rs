@@ -8,6 +8,7 @@ use crate::figures::{self, FIGURE_FRAMES};
 use dualphoton::capture::fit::{training_rmse, FitSettings, ImageModel};
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
+use dualphoton::capture::protocol::ORACLE_SHIFT_PX;
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::io::plot::{line_chart, Axes, Series};
@@ -44,6 +45,29 @@ pub struct FitResult {
     /// emission's (lit models).
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub light_share: Option<f64>,
+    /// Per training camera (`;`-separated, in the training cameras' order):
+    /// its fitted gain, how far its principal point moved (full-resolution
+    /// pixels, right then down, `x/y`) and the factor its focal lengths
+    /// were scaled by.
+    #[serde(default)]
+    pub gains: String,
+    #[serde(default)]
+    pub offsets_px: String,
+    #[serde(default)]
+    pub zooms: String,
+    /// Diagnostics that only the held-out photograph gives, never used to
+    /// choose anything (`capture::protocol::Oracle`): the least-squares gain
+    /// of the held-out view onto its photograph and the PSNR with it, and
+    /// the PSNR with the best whole-pixel shift of the protocol's view
+    /// (`x/y`, half-resolution pixels).
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub oracle_gain: Option<f64>,
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub psnr_oracle_gain_db: Option<f64>,
+    #[serde(default)]
+    pub oracle_shift_px: String,
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub psnr_oracle_shift_db: Option<f64>,
 }
 
 /// Fits every frame of `frames` under every model of `models`, scoring the
@@ -94,15 +118,19 @@ pub fn run(
                 train_noise: noise,
                 fit_s: fitted.seconds,
                 render_s: held.render_s,
-                lights: fitted
-                    .scene
-                    .lights
-                    .iter()
-                    .map(|l| format!("{:.4e}", l.intensity))
-                    .collect::<Vec<_>>()
-                    .join(";"),
+                lights: joined(fitted.scene.lights.iter().map(|l| format!("{:.4e}", l.intensity))),
                 emission: fitted.scene.medium.emission,
                 light_share: fitted.light_share,
+                gains: joined(fitted.gains.iter().map(|g| format!("{g:.4}"))),
+                offsets_px: joined(fitted.offsets.iter().map(|o| {
+                    let f = fitted.settings.factor as f64;
+                    format!("{:.1}/{:.1}", o[0] * f, o[1] * f)
+                })),
+                zooms: joined(fitted.zooms.iter().map(|z| format!("{z:.4}"))),
+                oracle_gain: Some(held.oracle.gain),
+                psnr_oracle_gain_db: held.oracle.with_gain.psnr,
+                oracle_shift_px: format!("{}/{}", held.oracle.shift[0], held.oracle.shift[1]),
+                psnr_oracle_shift_db: held.oracle.with_shift.psnr,
             };
             eprintln!(
                 "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} %, fit {:.0} s, render {:.0} s",
@@ -117,6 +145,11 @@ pub fn run(
         }
     }
     Ok(rows)
+}
+
+/// `items` separated by `;` (one CSV field).
+fn joined(items: impl Iterator<Item = String>) -> String {
+    items.collect::<Vec<_>>().join(";")
 }
 
 /// The models' table (Markdown): per model the mean over the frames of
@@ -174,7 +207,48 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
             );
         }
     }
-    md
+    md + &oracle_table(rows, models)
+}
+
+/// What only the held-out photograph could have fixed (Markdown): per model
+/// the mean held-out PSNR as scored, with the least-squares gain onto the
+/// photograph, and with the best whole-pixel shift. A diagnostic of where
+/// the error lies, never used to choose anything.
+fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
+    let lines: Vec<Vec<String>> = models
+        .iter()
+        .filter_map(|m| {
+            let mine: Vec<&FitResult> = rows.iter().filter(|r| r.model == m.name()).collect();
+            let mean = |f: &dyn Fn(&FitResult) -> Option<f64>| {
+                let v: Vec<f64> = mine.iter().filter_map(|r| f(r)).collect();
+                (v.len() == mine.len() && !v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+            };
+            Some(vec![
+                m.name().to_string(),
+                format!("{:.2}", mean(&|r| r.psnr_db)?),
+                format!("{:.3}", mean(&|r| r.oracle_gain)?),
+                format!("{:.2}", mean(&|r| r.psnr_oracle_gain_db)?),
+                format!("{:.2}", mean(&|r| r.psnr_oracle_shift_db)?),
+            ])
+        })
+        .collect();
+    if lines.is_empty() {
+        return String::new();
+    }
+    format!(
+        "\nWhat only the held-out photograph could have fixed (a diagnostic, never used to choose anything): \
+         the held-out view scaled by its least-squares gain onto the photograph, or moved by the best \
+         whole-pixel shift (at most {ORACLE_SHIFT_PX} pixels of the protocol's view each way). Mean over frames:\n\n"
+    ) + &markdown_table(
+        &[
+            "image model",
+            "held-out PSNR (dB)",
+            "least-squares gain",
+            "PSNR with that gain (dB)",
+            "PSNR with the best shift (dB)",
+        ],
+        lines,
+    )
 }
 
 /// `psnr_per_frame.svg`: the held-out PSNR of every model per frame.

@@ -6,7 +6,7 @@
 
 use super::fit::{fit, render_view, Fit, FitRow, FitSettings};
 use super::observe::{observe, Observed};
-use super::protocol::{Protocol, Score};
+use super::protocol::{Oracle, Protocol, Score};
 use super::{frames, Capture, Frames};
 use crate::error::{Error, Result};
 use crate::image::Image;
@@ -51,6 +51,9 @@ pub struct HeldOutView {
     pub prediction: Image,
     /// Against its photograph under the field's protocol.
     pub score: Score,
+    /// What a gain or a shift known only from its photograph would change
+    /// (a diagnostic, never used to choose anything).
+    pub oracle: Oracle,
     /// Seconds its render took.
     pub render_s: f64,
 }
@@ -155,8 +158,10 @@ pub fn fit_frame(
         if prediction.data.iter().any(|x| !x.is_finite()) {
             return Err(Error(format!("camera {}: the rendered view is not finite", capture.views[v].name)));
         }
-        let score = Protocol::for_size(camera.width, camera.height).score(&prediction, truth);
-        held_out.push(HeldOutView { view: v, prediction, score, render_s });
+        let protocol = Protocol::for_size(camera.width, camera.height);
+        let score = protocol.score(&prediction, truth);
+        let oracle = protocol.oracle(&prediction, truth);
+        held_out.push(HeldOutView { view: v, prediction, score, oracle, render_s });
     }
     Ok(FrameFit { fit: fitted, held_out })
 }

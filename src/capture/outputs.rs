@@ -10,7 +10,6 @@
 use super::calibration;
 use super::fit::{training_views, FitRow, FitSettings};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
-use super::scalarflow_cameras::refocus;
 use super::Capture;
 use crate::error::{Error, Result};
 use crate::experiment::Run;
@@ -35,6 +34,15 @@ struct Quality {
     /// The camera's fitted gain (a held-out camera's by the fit's rule: 1).
     #[serde(serialize_with = "fmt::f4")]
     gain: f64,
+    /// How far the fit moved the camera's principal point (full-resolution
+    /// pixels, right and down) and the factor it scaled its focal lengths
+    /// by; a held-out camera is never moved (0, 0, 1).
+    #[serde(serialize_with = "fmt::f1")]
+    offset_x_px: f64,
+    #[serde(serialize_with = "fmt::f1")]
+    offset_y_px: f64,
+    #[serde(serialize_with = "fmt::f4")]
+    zoom: f64,
 }
 
 /// The manifest's settings.
@@ -62,11 +70,7 @@ pub fn fit_and_write(
     settings: &FitSettings,
     out: &Path,
 ) -> Result<()> {
-    let path = calibration::locate(calibration_path);
-    let mut capture = calibration::load(&path).map_err(|e| Error(format!("--capture: {e}")))?;
-    if let Some(file) = focal_lengths {
-        refocus(&mut capture, file).map_err(|e| Error(format!("--focal-lengths: {e}")))?;
-    }
+    let capture = calibration::open(calibration_path, focal_lengths)?;
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
@@ -88,7 +92,7 @@ pub fn fit_and_write(
     let scene = &result.fit.scene;
     let d = &scene.density;
     run.write_manifest(&Settings {
-        capture: &path,
+        capture: &calibration::locate(calibration_path),
         focal_lengths,
         frame,
         fit: settings,
@@ -116,7 +120,9 @@ fn write(
     write_rows(&run.path("log.csv"), log)?;
     let mut quality = Vec::new();
     let views = training_views(&result.fit);
-    for (((&v, image), target), &gain) in roles.training.iter().zip(&views).zip(targets).zip(&result.fit.gains) {
+    let fit = &result.fit;
+    let moves = fit.gains.iter().zip(&fit.offsets).zip(&fit.zooms);
+    for (((&v, image), target), ((&gain, offset), &zoom)) in roles.training.iter().zip(&views).zip(targets).zip(moves) {
         let score = super::protocol::Score::of(image, target);
         let name = capture.views[v].name.clone();
         quality.push(Quality {
@@ -127,6 +133,9 @@ fn write(
             psnr_db: score.psnr,
             rel_rmse: score.rel_rmse,
             gain,
+            offset_x_px: offset[0] * fit.settings.factor as f64,
+            offset_y_px: offset[1] * fit.settings.factor as f64,
+            zoom,
         });
     }
     let single = result.held_out.len() == 1;
@@ -146,6 +155,9 @@ fn write(
             psnr_db: held.score.psnr,
             rel_rmse: held.score.rel_rmse,
             gain: 1.0,
+            offset_x_px: 0.0,
+            offset_y_px: 0.0,
+            zoom: 1.0,
         });
         eprintln!(
             "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",

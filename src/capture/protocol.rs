@@ -41,6 +41,73 @@ impl Protocol {
     pub fn score(&self, prediction: &Image, truth: &Image) -> Score {
         Score::of(&self.view(prediction), &self.view(truth))
     }
+
+    /// How much of `prediction`'s error under this protocol a different
+    /// gain, or a shift, of the held-out camera would remove ([`Oracle`]).
+    pub fn oracle(&self, prediction: &Image, truth: &Image) -> Oracle {
+        Oracle::of(&self.view(prediction), &self.view(truth))
+    }
+}
+
+/// Largest shift [`Oracle`] tries, in pixels of the protocol's view along
+/// each axis (8 half-resolution pixels: about 16 of the capture's).
+pub const ORACLE_SHIFT_PX: i64 = 8;
+
+/// What a prediction would score with knowledge that only the held-out
+/// photograph gives: the least-squares gain onto it, and the best whole-pixel
+/// shift (at most [`ORACLE_SHIFT_PX`] each way, the prediction's own gain).
+/// Never used to choose anything: it says how much of the held-out error is
+/// the held-out camera's unknown response or misplacement, and so how much
+/// is the reconstruction's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Oracle {
+    /// The least-squares gain of the prediction onto the truth (1 for a black prediction).
+    pub gain: f64,
+    /// The score with that gain.
+    pub with_gain: Score,
+    /// The best shift (right, down), in the view's pixels.
+    pub shift: [i64; 2],
+    /// The score with that shift.
+    pub with_shift: Score,
+}
+
+impl Oracle {
+    /// The oracle scores of `prediction` against `truth` (the same size).
+    pub fn of(prediction: &Image, truth: &Image) -> Oracle {
+        let pt: f64 = prediction.data.iter().zip(&truth.data).map(|(p, t)| p * t).sum();
+        let pp: f64 = prediction.data.iter().map(|p| p * p).sum();
+        let gain = if pp > 0.0 { pt / pp } else { 1.0 };
+        let with_gain = Score::of(&prediction.map(|p| p * gain), truth);
+        let r = ORACLE_SHIFT_PX;
+        let (shift, with_shift) = (-r..=r)
+            .flat_map(|dy| (-r..=r).map(move |dx| [dx, dy]))
+            .map(|s| (s, Score::of(&shifted(prediction, s), truth)))
+            .min_by(|a, b| mse_of(&a.1).total_cmp(&mse_of(&b.1)).then(norm(a.0).cmp(&norm(b.0))))
+            .expect("at least the zero shift");
+        Oracle { gain, with_gain, shift, with_shift }
+    }
+}
+
+/// The mean squared error behind a score (0 for a perfect one).
+fn mse_of(score: &Score) -> f64 {
+    score.psnr.map_or(0.0, |p| 10f64.powf(-p / 10.0))
+}
+
+/// Length of a shift, to prefer the smallest of equal ones.
+fn norm([dx, dy]: [i64; 2]) -> i64 {
+    dx.abs() + dy.abs()
+}
+
+/// `image` moved by `[dx, dy]` pixels (right, down), black where nothing moves in.
+fn shifted(image: &Image, [dx, dy]: [i64; 2]) -> Image {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let mut out = Image::zeros(image.width, image.height);
+    for y in 0.max(dy)..h.min(h + dy) {
+        for x in 0.max(dx)..w.min(w + dx) {
+            out.data[(y * w + x) as usize] = image.data[((y - dy) * w + x - dx) as usize];
+        }
+    }
+    out
 }
 
 /// The metrics of one prediction.
@@ -89,6 +156,35 @@ mod tests {
         assert!((s.rel_rmse.unwrap() - (0.02f64 / 0.5).sqrt()).abs() < 1e-12);
         assert_eq!(Score::of(&truth, &truth).psnr, None);
         assert_eq!(Score::of(&truth, &Image::zeros(2, 2)).rel_rmse, None);
+    }
+
+    /// A blob moved and dimmed: the oracle finds the gain and the shift
+    /// that undo each, and no better score than a perfect one.
+    #[test]
+    fn the_oracle_finds_a_known_gain_and_a_known_shift() {
+        let (w, h) = (40, 30);
+        let blob = |cx: f64, cy: f64, a: f64| Image {
+            width: w,
+            height: h,
+            data: (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    a * (-((x - cx).powi(2) + (y - cy).powi(2)) / 18.0).exp()
+                })
+                .collect(),
+        };
+        let truth = blob(20.0, 15.0, 0.8);
+        let dim = Oracle::of(&blob(20.0, 15.0, 0.5), &truth);
+        assert!((dim.gain - 1.6).abs() < 1e-9, "{dim:?}");
+        assert!(dim.with_gain.psnr.map_or(true, |p| p > 200.0), "a gain that undoes the dimming is exact: {dim:?}");
+        let moved = Oracle::of(&blob(17.0, 17.0, 0.8), &truth);
+        assert_eq!(moved.shift, [3, -2], "{moved:?}");
+        // Exact but for the blob's tail that the move takes past the edge.
+        assert!(moved.with_shift.psnr.unwrap() > 60.0, "{moved:?}");
+        let base = Score::of(&blob(17.0, 17.0, 0.8), &truth).psnr.unwrap();
+        assert!(moved.with_gain.psnr.unwrap() >= base - 1e-9, "the least-squares gain never scores worse");
+        let here = Oracle::of(&truth, &truth);
+        assert_eq!((here.gain, here.shift), (1.0, [0, 0]));
     }
 
     #[test]
