@@ -158,8 +158,8 @@ mod tests {
         assert_eq!(Score::of(&truth, &Image::zeros(2, 2)).rel_rmse, None);
     }
 
-    /// A blob moved and dimmed: the oracle finds the gain and the shift
-    /// that undo each, and no better score than a perfect one.
+    /// A blob dimmed, then a blob moved: the oracle finds the gain and the
+    /// shift that undo each.
     #[test]
     fn the_oracle_finds_a_known_gain_and_a_known_shift() {
         let (w, h) = (40, 30);
