@@ -349,4 +349,10 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     let quality = std::fs::read_to_string(out.join("fit_quality.csv")).unwrap();
     assert_eq!(quality.lines().count(), 4, "{quality}");
     assert!(quality.contains("test,held-out"), "{quality}");
+    // The held-out row's oracle: the best shift includes no shift at all,
+    // so it never scores below the PSNR as scored.
+    let header: Vec<&str> = quality.lines().next().unwrap().split(',').collect();
+    let row: Vec<&str> = quality.lines().find(|l| l.contains(",held-out,")).unwrap().split(',').collect();
+    let column = |name: &str| row[header.iter().position(|h| *h == name).unwrap()].parse::<f64>().unwrap();
+    assert!(column("psnr_oracle_shift_db") >= column("psnr_db"), "{quality}");
 }

@@ -43,6 +43,14 @@ struct Quality {
     offset_y_px: f64,
     #[serde(serialize_with = "fmt::f4")]
     zoom: f64,
+    /// A held-out camera's PSNR with its view scaled by the least-squares
+    /// gain onto its photograph, and moved by the best whole-pixel shift
+    /// (`super::protocol::Oracle`): how much of its error its unknown
+    /// response or a calibration error would explain. Empty for training cameras.
+    #[serde(serialize_with = "fmt::opt_f4")]
+    psnr_oracle_gain_db: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    psnr_oracle_shift_db: Option<f64>,
 }
 
 /// The manifest's settings.
@@ -136,6 +144,8 @@ fn write(
             offset_x_px: offset[0] * fit.settings.factor as f64,
             offset_y_px: offset[1] * fit.settings.factor as f64,
             zoom,
+            psnr_oracle_gain_db: None,
+            psnr_oracle_shift_db: None,
         });
     }
     let single = result.held_out.len() == 1;
@@ -158,12 +168,20 @@ fn write(
             offset_x_px: 0.0,
             offset_y_px: 0.0,
             zoom: 1.0,
+            psnr_oracle_gain_db: held.oracle.with_gain.psnr,
+            psnr_oracle_shift_db: held.oracle.with_shift.psnr,
         });
         eprintln!(
             "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",
             view.name,
             held.score.psnr.map_or("-".into(), |x| format!("{x:.2}")),
             held.score.rel_rmse.map_or("-".into(), |x| format!("{:.1} %", 100.0 * x))
+        );
+        let [dx, dy] = held.oracle.shift;
+        eprintln!(
+            "  moved by its best whole-pixel shift ({dx} right, {dy} down, in the protocol's pixels) it would \
+             score {} dB: what a calibration error of the held-out camera costs (fit_quality.csv)",
+            held.oracle.with_shift.psnr.map_or("-".into(), |x| format!("{x:.2}"))
         );
     }
     write_rows(&run.path("fit_quality.csv"), &quality)
