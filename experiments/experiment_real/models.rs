@@ -122,10 +122,7 @@ pub fn run(
                 emission: fitted.scene.medium.emission,
                 light_share: fitted.light_share,
                 gains: joined(fitted.gains.iter().map(|g| format!("{g:.4}"))),
-                offsets_px: joined(fitted.offsets.iter().map(|o| {
-                    let f = fitted.settings.factor as f64;
-                    format!("{:.1}/{:.1}", o[0] * f, o[1] * f)
-                })),
+                offsets_px: joined(fitted.offsets_px().iter().map(|o| format!("{:.1}/{:.1}", o[0], o[1]))),
                 zooms: joined(fitted.zooms.iter().map(|z| format!("{z:.4}"))),
                 oracle_gain: Some(held.oracle.gain),
                 psnr_oracle_gain_db: held.oracle.with_gain.psnr,

@@ -307,6 +307,15 @@ pub struct Fit {
     pub seconds: f64,
 }
 
+impl Fit {
+    /// Per training camera, how far its principal point was moved, in
+    /// pixels of the capture's full resolution (right and down).
+    pub fn offsets_px(&self) -> Vec<[f64; 2]> {
+        let f = self.settings.factor as f64;
+        self.offsets.iter().map(|o| [o[0] * f, o[1] * f]).collect()
+    }
+}
+
 /// Fits the frame whose training images (at 1/`settings.factor` of the
 /// capture's resolution) are `images`, seen by `cameras` (at the same
 /// resolution), with the density on a grid over `smoke_box`.

@@ -159,8 +159,9 @@ pub fn fit_frame(
             return Err(Error(format!("camera {}: the rendered view is not finite", capture.views[v].name)));
         }
         let protocol = Protocol::for_size(camera.width, camera.height);
-        let score = protocol.score(&prediction, truth);
-        let oracle = protocol.oracle(&prediction, truth);
+        let (seen, photographed) = (protocol.view(&prediction), protocol.view(truth));
+        let score = Score::of(&seen, &photographed);
+        let oracle = Oracle::of(&seen, &photographed);
         held_out.push(HeldOutView { view: v, prediction, score, oracle, render_s });
     }
     Ok(FrameFit { fit: fitted, held_out })

@@ -129,7 +129,8 @@ fn write(
     let mut quality = Vec::new();
     let views = training_views(&result.fit);
     let fit = &result.fit;
-    let moves = fit.gains.iter().zip(&fit.offsets).zip(&fit.zooms);
+    let offsets = fit.offsets_px();
+    let moves = fit.gains.iter().zip(&offsets).zip(&fit.zooms);
     for (((&v, image), target), ((&gain, offset), &zoom)) in roles.training.iter().zip(&views).zip(targets).zip(moves) {
         let score = super::protocol::Score::of(image, target);
         let name = capture.views[v].name.clone();
@@ -141,8 +142,8 @@ fn write(
             psnr_db: score.psnr,
             rel_rmse: score.rel_rmse,
             gain,
-            offset_x_px: offset[0] * fit.settings.factor as f64,
-            offset_y_px: offset[1] * fit.settings.factor as f64,
+            offset_x_px: offset[0],
+            offset_y_px: offset[1],
             zoom,
             psnr_oracle_gain_db: None,
             psnr_oracle_shift_db: None,

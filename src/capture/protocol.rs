@@ -41,12 +41,6 @@ impl Protocol {
     pub fn score(&self, prediction: &Image, truth: &Image) -> Score {
         Score::of(&self.view(prediction), &self.view(truth))
     }
-
-    /// How much of `prediction`'s error under this protocol a different
-    /// gain, or a shift, of the held-out camera would remove ([`Oracle`]).
-    pub fn oracle(&self, prediction: &Image, truth: &Image) -> Oracle {
-        Oracle::of(&self.view(prediction), &self.view(truth))
-    }
 }
 
 /// Largest shift [`Oracle`] tries, in pixels of the protocol's view along
