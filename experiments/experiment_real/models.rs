@@ -9,8 +9,9 @@ use dualphoton::capture::fit::{training_rmse, FitSettings, ImageModel};
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::protocol::ORACLE_SHIFT_PX;
+use dualphoton::capture::rig::Rig;
 use dualphoton::capture::Capture;
-use dualphoton::error::Result;
+use dualphoton::error::{Error, Result};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
@@ -70,6 +71,22 @@ pub struct FitResult {
     pub psnr_oracle_shift_db: Option<f64>,
 }
 
+/// The rig `base` asks for: read from `path` if a run before this one
+/// fitted it, else fitted on the training cameras and written there.
+fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) -> Result<Option<Rig>> {
+    if path.exists() && base.align && base.shared_alignment {
+        let text = std::fs::read_to_string(path)?;
+        return Ok(Some(serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?));
+    }
+    let rig = Rig::if_shared(capture, &roles.training, base, &mut |frame, fit| {
+        eprintln!("rig: frame {frame} fitted in {:.0} s", fit.seconds)
+    })?;
+    if let Some(rig) = &rig {
+        std::fs::write(path, serde_json::to_string_pretty(rig).map_err(|e| Error(e.to_string()))?)?;
+    }
+    Ok(rig)
+}
+
 /// Fits every frame of `frames` under every model of `models`, scoring the
 /// one held-out camera of `roles`.
 pub fn run(
@@ -86,13 +103,14 @@ pub fn run(
         rows.iter().any(|r| r.frame == frame && r.model == model.name())
     };
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
+    let rig = rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
     for images in read(capture, roles, &todo, base.factor)? {
         let frame = images.frame;
         let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
         let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
         for model in pending {
             let settings = FitSettings { model, ..base.clone() };
-            let result = fit_frame(capture, roles, &images, &settings, &mut |row| {
+            let result = fit_frame(capture, roles, &images, &settings, rig.as_ref(), &mut |row| {
                 if row.update % 20 == 0 {
                     eprintln!(
                         "  frame {frame} {}: level {} update {} image rmse {:.5} ({:.0} s)",

@@ -7,6 +7,7 @@
 use super::fit::{fit, render_view, Fit, FitRow, FitSettings};
 use super::observe::{observe, Observed};
 use super::protocol::{Oracle, Protocol, Score};
+use super::rig::Rig;
 use super::{frames, Capture, Frames};
 use crate::error::{Error, Result};
 use crate::image::Image;
@@ -139,16 +140,18 @@ pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -
         .collect())
 }
 
-/// Fits `images` (one frame) and renders and scores every held-out camera.
+/// Fits `images` (one frame), its training cameras aligned by `rig` if
+/// given, and renders and scores every held-out camera.
 pub fn fit_frame(
     capture: &Capture,
     roles: &Roles,
     images: &FrameImages,
     settings: &FitSettings,
+    rig: Option<&Rig>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<FrameFit> {
     let smoke_box = capture.smoke_box.ok_or_else(|| Error("the calibration gives no smoke box".into()))?;
-    let fitted = fit(&images.training.cameras, &images.training.images[0], smoke_box, settings, progress)?;
+    let fitted = fit(&images.training.cameras, &images.training.images[0], smoke_box, settings, rig, progress)?;
     let mut held_out = Vec::new();
     for (&v, truth) in roles.held_out.iter().zip(&images.held_out) {
         let camera = &capture.views[v].camera;

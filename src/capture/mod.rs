@@ -15,6 +15,7 @@
 //!   lights and an ambient term, fitted by least squares on their renders;
 //!   [`lights`] gives the image's derivatives in a light's place.
 //! - [`priors`] are what the fit asks of a density beside the images.
+//! - [`rig`] aligns the training cameras once for every frame of a capture.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
 //!   downsampling, a fixed crop, PSNR and relative RMSE.
@@ -30,6 +31,7 @@ pub mod observe;
 pub mod outputs;
 pub mod priors;
 pub mod protocol;
+pub mod rig;
 pub mod scalarflow_cameras;
 
 use crate::math::Vec3;

@@ -10,6 +10,7 @@
 use super::calibration;
 use super::fit::{training_views, FitRow, FitSettings};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
+use super::rig::Rig;
 use super::Capture;
 use crate::error::{Error, Result};
 use crate::experiment::Run;
@@ -83,9 +84,12 @@ pub fn fit_and_write(
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
     eprintln!("reading frame {frame} of {} cameras ...", roles.training.len() + roles.held_out.len());
+    let rig = Rig::if_shared(&capture, &roles.training, settings, &mut |f, _| {
+        eprintln!("aligned the training cameras on frame {f}")
+    })?;
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
     let mut log: Vec<FitRow> = Vec::new();
-    let result = fit_frame(&capture, &roles, &images, settings, &mut |row| {
+    let result = fit_frame(&capture, &roles, &images, settings, rig.as_ref(), &mut |row| {
         eprint!(
             "\rlevel {} update {}: image RMSE {:.5} ({:.0} s)   ",
             row.level,

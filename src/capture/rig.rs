@@ -1,0 +1,190 @@
+//! The training cameras' alignment shared by every frame of a capture.
+//!
+//! The cameras of a capture never move, yet a fit that aligns them frame by
+//! frame ([`super::align`]) finds different corrections on every frame: on
+//! a thin column of smoke near the image's edge a camera's magnification
+//! and its vertical offset explain the same pixels. A rig fits them once,
+//! on calibration frames spread over the clip (frames nobody reports,
+//! [`calibration_frames`]), each fitted under emission-absorption (the
+//! cheapest image model: the alignment is the cameras', not the model's,
+//! so every model then sees the same cameras), and keeps per camera the
+//! median over those frames. The held-out camera is not part of it.
+
+use super::fit::{fit, Fit, FitSettings, ImageModel};
+use super::observe::observe;
+use super::Capture;
+use crate::error::{Error, Result};
+use crate::scene::Camera;
+use serde::{Deserialize, Serialize};
+
+/// Calibration frames a rig is fitted on.
+pub const RIG_FRAMES: usize = 3;
+
+/// One training camera's share of a rig.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RigCamera {
+    /// The camera's name in the calibration.
+    pub name: String,
+    /// How far its principal point moves, in pixels of the capture's full
+    /// resolution (right, down).
+    pub offset_px: [f64; 2],
+    /// The factor its focal lengths are multiplied by.
+    pub zoom: f64,
+}
+
+/// The training cameras' corrections, fitted once for every frame: the
+/// offsets' mean is 0 and the magnifications' geometric mean 1, as in a
+/// frame's own alignment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Rig {
+    /// The frames it was fitted on.
+    pub frames: Vec<usize>,
+    /// Per training camera, in the training cameras' order.
+    pub cameras: Vec<RigCamera>,
+}
+
+/// [`RIG_FRAMES`] frames of a clip of `count` frames, at 1/6, 1/2 and 5/6 of
+/// it (rounded down): away from both ends, where the smoke may be a thin
+/// column or leave the box. For 120 frames, 19, 59 and 99.
+pub fn calibration_frames(count: usize) -> Vec<usize> {
+    let last = count.saturating_sub(1);
+    let mut frames: Vec<usize> = (0..RIG_FRAMES).map(|i| (2 * i + 1) * last / (2 * RIG_FRAMES)).collect();
+    frames.dedup();
+    frames
+}
+
+impl Rig {
+    /// The rig `settings` ask for: `None` unless they align the training
+    /// cameras once for every frame ([`FitSettings::shared_alignment`]).
+    pub fn if_shared(
+        capture: &Capture,
+        training: &[usize],
+        settings: &FitSettings,
+        progress: &mut dyn FnMut(usize, &Fit),
+    ) -> Result<Option<Rig>> {
+        if settings.align && settings.shared_alignment {
+            Rig::fit(capture, training, settings, progress).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// Fits the rig of `training` cameras of `capture` on its
+    /// [`calibration_frames`], each with `settings` (their per-frame
+    /// alignment on) under emission-absorption. `progress` hears each frame.
+    pub fn fit(
+        capture: &Capture,
+        training: &[usize],
+        settings: &FitSettings,
+        progress: &mut dyn FnMut(usize, &Fit),
+    ) -> Result<Rig> {
+        let smoke_box = capture.smoke_box.ok_or_else(|| Error("the calibration gives no smoke box".into()))?;
+        let frames = calibration_frames(capture.frame_count());
+        let settings = FitSettings {
+            model: ImageModel::EmissionAbsorption,
+            align: true,
+            shared_alignment: false,
+            ..settings.clone()
+        };
+        let observed = observe(capture, training, &frames, settings.factor)?;
+        let mut fits = Vec::new();
+        for (&frame, images) in frames.iter().zip(&observed.images) {
+            let fitted = fit(&observed.cameras, images, smoke_box, &settings, None, &mut |_| {})?;
+            progress(frame, &fitted);
+            fits.push(fitted);
+        }
+        let median = |values: Vec<f64>| {
+            let mut v = values;
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let cameras: Vec<RigCamera> = training
+            .iter()
+            .enumerate()
+            .map(|(c, &v)| RigCamera {
+                name: capture.views[v].name.clone(),
+                offset_px: [0, 1].map(|a| median(fits.iter().map(|f| f.offsets_px()[c][a]).collect())),
+                zoom: median(fits.iter().map(|f| f.zooms[c]).collect()),
+            })
+            .collect();
+        let cameras = centred(cameras);
+        Ok(Rig { frames, cameras })
+    }
+
+    /// `cameras` (the training cameras at 1/`factor` of the capture's
+    /// resolution, in the rig's order) with the rig's corrections, and the
+    /// offsets in their pixels.
+    pub fn apply(&self, cameras: &[Camera], factor: usize) -> Result<(Vec<Camera>, Vec<[f64; 2]>)> {
+        if cameras.len() != self.cameras.len() {
+            return Err(Error(format!("the rig has {} cameras, the fit {}", self.cameras.len(), cameras.len())));
+        }
+        let f = factor as f64;
+        let offsets: Vec<[f64; 2]> = self.cameras.iter().map(|c| [c.offset_px[0] / f, c.offset_px[1] / f]).collect();
+        let moved =
+            cameras.iter().zip(&self.cameras).zip(&offsets).map(|((cam, r), o)| cam.shift(o[0], o[1]).zoom(r.zoom));
+        Ok((moved.collect(), offsets))
+    }
+}
+
+/// `cameras` with their offsets' mean taken out and their magnifications
+/// divided by their geometric mean: what every camera shares is the
+/// density's to explain.
+fn centred(mut cameras: Vec<RigCamera>) -> Vec<RigCamera> {
+    let n = cameras.len().max(1) as f64;
+    let mean = [0, 1].map(|a| cameras.iter().map(|c| c.offset_px[a]).sum::<f64>() / n);
+    let log_mean = cameras.iter().map(|c| c.zoom.ln()).sum::<f64>() / n;
+    for c in &mut cameras {
+        c.offset_px = [c.offset_px[0] - mean[0], c.offset_px[1] - mean[1]];
+        c.zoom /= log_mean.exp();
+    }
+    cameras
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+    use crate::scene::Lens;
+
+    fn camera(name: &str, offset_px: [f64; 2], zoom: f64) -> RigCamera {
+        RigCamera { name: name.into(), offset_px, zoom }
+    }
+
+    #[test]
+    fn a_rig_keeps_the_mean_offset_and_magnification_of_the_calibration() {
+        let rig = centred(vec![camera("a", [10.0, -4.0], 1.1), camera("b", [2.0, 8.0], 1.1 * 1.21)]);
+        assert!((rig[0].offset_px[0] - 4.0).abs() < 1e-12 && (rig[1].offset_px[1] - 6.0).abs() < 1e-12, "{rig:?}");
+        assert!((rig[0].zoom * rig[1].zoom - 1.0).abs() < 1e-12 && (rig[1].zoom / rig[0].zoom - 1.21).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_rig_moves_each_camera_in_the_working_resolutions_pixels() {
+        let base = Camera {
+            position: Vec3::new(0.0, 0.0, 2.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            lens: Lens::Pinhole { fx: 50.0, fy: 50.0, cx: 32.0, cy: 24.0 },
+            width: 64,
+            height: 48,
+        };
+        let rig = Rig { frames: vec![0], cameras: vec![camera("a", [16.0, -8.0], 1.05), camera("b", [0.0; 2], 1.0)] };
+        let (moved, offsets) = rig.apply(&[base.clone(), base.clone()], 8).unwrap();
+        assert_eq!(offsets, vec![[2.0, -1.0], [0.0, 0.0]]);
+        let ([fx, fy, cx, cy], [fx0, fy0, cx0, cy0]) = (moved[0].intrinsics(), base.intrinsics());
+        assert!((cx - cx0 - 2.0).abs() < 1e-12 && (cy - cy0 + 1.0).abs() < 1e-12);
+        assert!((fx / fx0 - 1.05).abs() < 1e-12 && (fy / fy0 - 1.05).abs() < 1e-12);
+        assert_eq!(moved[1], base);
+        assert!(rig.apply(&[base], 8).is_err(), "a rig of two cameras does not fit one");
+    }
+
+    #[test]
+    fn calibration_frames_are_inside_the_clip_and_spread_over_it() {
+        assert_eq!(calibration_frames(120), vec![19, 59, 99]);
+        assert_eq!(calibration_frames(1), vec![0]);
+        assert_eq!(calibration_frames(0), vec![0]);
+        for count in 1..50 {
+            let f = calibration_frames(count);
+            assert!(f.iter().all(|&x| x < count) && f.windows(2).all(|w| w[0] < w[1]), "{count}: {f:?}");
+        }
+    }
+}
