@@ -110,7 +110,7 @@ fn run(args: Args) -> Result<()> {
     let mut md = summary(&rows, &test.name);
     if !args.models.is_empty() {
         let views = run.path("views");
-        let fits =
+        let (fits, rig) =
             models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| args.frames.contains(&r.frame)).collect();
         md += &format!(
@@ -119,6 +119,9 @@ fn run(args: Args) -> Result<()> {
             roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect::<Vec<_>>().join(", ")
         );
         md += &models::table(&fits, &args.models);
+        if let Some(rig) = &rig {
+            md += &models::rig_note(rig);
+        }
         let nearest_rows: Vec<(usize, f64)> =
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
         models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows)?;

@@ -87,6 +87,28 @@ fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) -> Res
     Ok(rig)
 }
 
+/// The rig in words and a table, for summary.md.
+pub fn rig_note(rig: &Rig) -> String {
+    let frames: Vec<String> = rig.frames.iter().map(|f| f.to_string()).collect();
+    let mut md = format!(
+        "\nThe training cameras were aligned once for every frame, on frames {} under \
+         emission-absorption ({:.0} s, once per run): per camera how far its principal point moved \
+         (pixels of the capture, right and down) and the factor its focal lengths were scaled by.\n\n",
+        frames.join(", "),
+        rig.seconds
+    );
+    let rows = rig.cameras.iter().map(|c| {
+        vec![
+            c.name.clone(),
+            format!("{:.1}", c.offset_px[0]),
+            format!("{:.1}", c.offset_px[1]),
+            format!("{:.4}", c.zoom),
+        ]
+    });
+    md += &markdown_table(&["camera", "right (px)", "down (px)", "focal length factor"], rows);
+    md
+}
+
 /// Fits every frame of `frames` under every model of `models`, scoring the
 /// one held-out camera of `roles`.
 pub fn run(
@@ -97,7 +119,7 @@ pub fn run(
     base: &FitSettings,
     csv: &Path,
     views: &Path,
-) -> Result<Vec<FitResult>> {
+) -> Result<(Vec<FitResult>, Option<Rig>)> {
     let mut rows: Vec<FitResult> = if csv.exists() { read_rows(csv)? } else { Vec::new() };
     let done = |rows: &[FitResult], frame: usize, model: ImageModel| {
         rows.iter().any(|r| r.frame == frame && r.model == model.name())
@@ -159,7 +181,7 @@ pub fn run(
             write_rows(csv, &rows)?;
         }
     }
-    Ok(rows)
+    Ok((rows, rig))
 }
 
 /// `items` separated by `;` (one CSV field).

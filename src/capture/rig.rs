@@ -41,6 +41,9 @@ pub struct Rig {
     pub frames: Vec<usize>,
     /// Per training camera, in the training cameras' order.
     pub cameras: Vec<RigCamera>,
+    /// Seconds its fits took, all frames together: paid once per capture.
+    #[serde(default)]
+    pub seconds: f64,
 }
 
 /// [`RIG_FRAMES`] frames of a clip of `count` frames, at 1/6, 1/2 and 5/6 of
@@ -78,6 +81,7 @@ impl Rig {
         settings: &FitSettings,
         progress: &mut dyn FnMut(usize, &Fit),
     ) -> Result<Rig> {
+        let start = std::time::Instant::now();
         let smoke_box = capture.smoke_box.ok_or_else(|| Error("the calibration gives no smoke box".into()))?;
         let frames = calibration_frames(capture.frame_count());
         let settings = FitSettings {
@@ -108,7 +112,7 @@ impl Rig {
             })
             .collect();
         let cameras = centred(cameras);
-        Ok(Rig { frames, cameras })
+        Ok(Rig { frames, cameras, seconds: start.elapsed().as_secs_f64() })
     }
 
     /// `cameras` (the training cameras at 1/`factor` of the capture's
@@ -167,7 +171,11 @@ mod tests {
             width: 64,
             height: 48,
         };
-        let rig = Rig { frames: vec![0], cameras: vec![camera("a", [16.0, -8.0], 1.05), camera("b", [0.0; 2], 1.0)] };
+        let rig = Rig {
+            frames: vec![0],
+            cameras: vec![camera("a", [16.0, -8.0], 1.05), camera("b", [0.0; 2], 1.0)],
+            seconds: 0.0,
+        };
         let (moved, offsets) = rig.apply(&[base.clone(), base.clone()], 8).unwrap();
         assert_eq!(offsets, vec![[2.0, -1.0], [0.0, 0.0]]);
         let ([fx, fy, cx, cy], [fx0, fy0, cx0, cy0]) = (moved[0].intrinsics(), base.intrinsics());
