@@ -355,4 +355,7 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     let row: Vec<&str> = quality.lines().find(|l| l.contains(",held-out,")).unwrap().split(',').collect();
     let column = |name: &str| row[header.iter().position(|h| *h == name).unwrap()].parse::<f64>().unwrap();
     assert!(column("psnr_oracle_shift_db") >= column("psnr_db"), "{quality}");
+    // Aligned (a magnification, then a shift) it includes magnification 1.
+    assert!(column("psnr_oracle_aligned_db") >= column("psnr_oracle_shift_db"), "{quality}");
+    assert!((0.97..=1.03).contains(&column("oracle_magnification")), "{quality}");
 }

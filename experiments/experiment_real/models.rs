@@ -8,7 +8,7 @@ use crate::figures::{self, FIGURE_FRAMES};
 use dualphoton::capture::fit::{training_rmse, FitSettings, ImageModel};
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
-use dualphoton::capture::protocol::ORACLE_SHIFT_PX;
+use dualphoton::capture::protocol::{ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::Capture;
 use dualphoton::error::{Error, Result};
@@ -69,6 +69,15 @@ pub struct FitResult {
     pub oracle_shift_px: String,
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub psnr_oracle_shift_db: Option<f64>,
+    /// The same with the held-out camera aligned as the training cameras
+    /// are (`capture::protocol::Aligned`): the best magnification about its
+    /// principal point, the best shift after it (`x/y`) and the PSNR with both.
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub oracle_magnification: Option<f64>,
+    #[serde(default)]
+    pub oracle_aligned_shift_px: String,
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub psnr_oracle_aligned_db: Option<f64>,
 }
 
 /// The rig `base` asks for: read from `path` if a run before this one
@@ -168,6 +177,9 @@ pub fn run(
                 psnr_oracle_gain_db: held.oracle.with_gain.psnr,
                 oracle_shift_px: format!("{}/{}", held.oracle.shift[0], held.oracle.shift[1]),
                 psnr_oracle_shift_db: held.oracle.with_shift.psnr,
+                oracle_magnification: Some(held.aligned.magnification),
+                oracle_aligned_shift_px: format!("{}/{}", held.aligned.shift[0], held.aligned.shift[1]),
+                psnr_oracle_aligned_db: held.aligned.score.psnr,
             };
             eprintln!(
                 "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} %, fit {:.0} s, render {:.0} s",
@@ -266,6 +278,8 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
                 format!("{:.3}", mean(&|r| r.oracle_gain)?),
                 format!("{:.2}", mean(&|r| r.psnr_oracle_gain_db)?),
                 format!("{:.2}", mean(&|r| r.psnr_oracle_shift_db)?),
+                format!("{:.4}", mean(&|r| r.oracle_magnification)?),
+                format!("{:.2}", mean(&|r| r.psnr_oracle_aligned_db)?),
             ])
         })
         .collect();
@@ -275,7 +289,11 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
     format!(
         "\nWhat only the held-out photograph could have fixed (a diagnostic, never used to choose anything): \
          the held-out view scaled by its least-squares gain onto the photograph, or moved by the best \
-         whole-pixel shift (at most {ORACLE_SHIFT_PX} pixels of the protocol's view each way). Mean over frames:\n\n"
+         whole-pixel shift (at most {ORACLE_SHIFT_PX} pixels of the protocol's view each way), or aligned as \
+         the training cameras are (the best magnification about its principal point, {:.2} to {:.2}, and the \
+         best shift after it). Mean over frames:\n\n",
+        ORACLE_MAGNIFICATIONS[0],
+        ORACLE_MAGNIFICATIONS[ORACLE_MAGNIFICATIONS.len() - 1]
     ) + &markdown_table(
         &[
             "image model",
@@ -283,6 +301,8 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
             "least-squares gain",
             "PSNR with that gain (dB)",
             "PSNR with the best shift (dB)",
+            "best magnification",
+            "PSNR with the best magnification and shift (dB)",
         ],
         lines,
     )

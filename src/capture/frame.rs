@@ -6,7 +6,7 @@
 
 use super::fit::{fit, render_view, Fit, FitRow, FitSettings};
 use super::observe::{observe, Observed};
-use super::protocol::{Oracle, Protocol, Score};
+use super::protocol::{Aligned, Oracle, Protocol, Score};
 use super::rig::Rig;
 use super::{frames, Capture, Frames};
 use crate::error::{Error, Result};
@@ -55,6 +55,9 @@ pub struct HeldOutView {
     /// What a gain or a shift known only from its photograph would change
     /// (a diagnostic, never used to choose anything).
     pub oracle: Oracle,
+    /// What aligning it as the training cameras are would change (a
+    /// magnification and a shift found on its photograph; a diagnostic).
+    pub aligned: Aligned,
     /// Seconds its render took.
     pub render_s: f64,
 }
@@ -165,7 +168,9 @@ pub fn fit_frame(
         let (seen, photographed) = (protocol.view(&prediction), protocol.view(truth));
         let score = Score::of(&seen, &photographed);
         let oracle = Oracle::of(&seen, &photographed);
-        held_out.push(HeldOutView { view: v, prediction, score, oracle, render_s });
+        let [_, _, cx, cy] = camera.intrinsics();
+        let aligned = Aligned::of(&prediction, [cx, cy], &protocol, &photographed);
+        held_out.push(HeldOutView { view: v, prediction, score, oracle, aligned, render_s });
     }
     Ok(FrameFit { fit: fitted, held_out })
 }

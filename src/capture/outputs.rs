@@ -52,6 +52,14 @@ struct Quality {
     psnr_oracle_gain_db: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     psnr_oracle_shift_db: Option<f64>,
+    /// A held-out camera's best magnification about its principal point and
+    /// its PSNR with it and the best shift after it
+    /// (`super::protocol::Aligned`): the camera aligned as the training
+    /// cameras are. Empty for training cameras.
+    #[serde(serialize_with = "fmt::opt_f4")]
+    oracle_magnification: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    psnr_oracle_aligned_db: Option<f64>,
 }
 
 /// The manifest's settings.
@@ -151,6 +159,8 @@ fn write(
             zoom,
             psnr_oracle_gain_db: None,
             psnr_oracle_shift_db: None,
+            oracle_magnification: None,
+            psnr_oracle_aligned_db: None,
         });
     }
     let single = result.held_out.len() == 1;
@@ -175,6 +185,8 @@ fn write(
             zoom: 1.0,
             psnr_oracle_gain_db: held.oracle.with_gain.psnr,
             psnr_oracle_shift_db: held.oracle.with_shift.psnr,
+            oracle_magnification: Some(held.aligned.magnification),
+            psnr_oracle_aligned_db: held.aligned.score.psnr,
         });
         eprintln!(
             "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",
@@ -185,8 +197,11 @@ fn write(
         let [dx, dy] = held.oracle.shift;
         eprintln!(
             "  moved by its best whole-pixel shift ({dx} right, {dy} down, in the protocol's pixels) it would \
-             score {} dB: what a calibration error of the held-out camera costs (fit_quality.csv)",
-            held.oracle.with_shift.psnr.map_or("-".into(), |x| format!("{x:.2}"))
+             score {} dB, magnified {:.3} times and shifted {} dB: what a calibration error of the held-out \
+             camera costs (fit_quality.csv)",
+            held.oracle.with_shift.psnr.map_or("-".into(), |x| format!("{x:.2}")),
+            held.aligned.magnification,
+            held.aligned.score.psnr.map_or("-".into(), |x| format!("{x:.2}"))
         );
     }
     write_rows(&run.path("fit_quality.csv"), &quality)
