@@ -71,13 +71,16 @@ pub struct FitResult {
     pub psnr_oracle_shift_db: Option<f64>,
     /// The same with the held-out camera aligned as the training cameras
     /// are (`capture::protocol::Aligned`): the best magnification about its
-    /// principal point, the best shift after it (`x/y`) and the PSNR with both.
+    /// principal point, the best shift after it (`x/y`) and the PSNR and
+    /// relative RMSE with both.
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub oracle_magnification: Option<f64>,
     #[serde(default)]
     pub oracle_aligned_shift_px: String,
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub psnr_oracle_aligned_db: Option<f64>,
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub rel_rmse_oracle_aligned: Option<f64>,
 }
 
 /// The rig `base` asks for: read from `path` if a run before this one
@@ -180,6 +183,7 @@ pub fn run(
                 oracle_magnification: Some(held.aligned.magnification),
                 oracle_aligned_shift_px: format!("{}/{}", held.aligned.shift[0], held.aligned.shift[1]),
                 psnr_oracle_aligned_db: held.aligned.score.psnr,
+                rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
             };
             eprintln!(
                 "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} %, fit {:.0} s, render {:.0} s",
@@ -280,6 +284,7 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
                 format!("{:.2}", mean(&|r| r.psnr_oracle_shift_db)?),
                 format!("{:.4}", mean(&|r| r.oracle_magnification)?),
                 format!("{:.2}", mean(&|r| r.psnr_oracle_aligned_db)?),
+                format!("{:.1}", 100.0 * mean(&|r| r.rel_rmse_oracle_aligned)?),
             ])
         })
         .collect();
@@ -303,6 +308,7 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
             "PSNR with the best shift (dB)",
             "best magnification",
             "PSNR with the best magnification and shift (dB)",
+            "relative RMSE with them (%)",
         ],
         lines,
     )

@@ -124,6 +124,21 @@ pub fn warp(rendered: &Image, photo: &Image, centre: [f64; 2], zoom: bool) -> Wa
     Warp { offset: [w[0], w[1]], zoom: w[2] }
 }
 
+/// Takes out of per-camera `offsets` their mean and divides `factors`
+/// (magnifications) by their geometric mean: a move or magnification that
+/// every camera shares is the density's to explain, not the cameras'.
+pub fn take_out_shared(offsets: &mut [[f64; 2]], factors: &mut [f64]) {
+    let n = offsets.len().max(1) as f64;
+    let mean = [0, 1].map(|a| offsets.iter().map(|o| o[a]).sum::<f64>() / n);
+    for o in offsets.iter_mut() {
+        *o = [o[0] - mean[0], o[1] - mean[1]];
+    }
+    let geometric_mean = (factors.iter().map(|k| k.ln()).sum::<f64>() / factors.len().max(1) as f64).exp();
+    for k in factors.iter_mut() {
+        *k /= geometric_mean;
+    }
+}
+
 /// The Gauss-Newton step `-h^-1 g`; without `zoom`, in the offset alone
 /// (the zoom's step 0). `None` where `h` is singular.
 fn solve(g: &Vector3<f64>, h: &Matrix3<f64>, zoom: bool) -> Option<Vector3<f64>> {

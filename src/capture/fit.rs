@@ -18,7 +18,7 @@
 //! [`FitSettings::start_depth`] across the hull) and moves only where
 //! attenuation in the images asks for it.
 
-use super::align::warp;
+use super::align::{take_out_shared, warp};
 use super::lighting::{candidate_lights, fit_gains, fit_lights, light_share, place_lights, weights_of};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use super::priors::{smoothness, sparsity};
@@ -474,12 +474,12 @@ fn align_cameras(
             warp(r, p, [cx, cy], zoom)
         })
         .collect();
-    let n = warps.len() as f64;
-    let mean = [0, 1].map(|a| warps.iter().map(|w| w.offset[a]).sum::<f64>() / n);
-    let log_mean = warps.iter().map(|w| (1.0 + w.zoom).ln()).sum::<f64>() / n;
-    for (((camera, total), factor), w) in cameras.iter_mut().zip(offsets).zip(zooms).zip(&warps) {
-        let (dx, dy) = (w.offset[0] - mean[0], w.offset[1] - mean[1]);
-        let k = (1.0 + w.zoom) / log_mean.exp();
+    let mut moves: Vec<[f64; 2]> = warps.iter().map(|w| w.offset).collect();
+    let mut factors: Vec<f64> = warps.iter().map(|w| 1.0 + w.zoom).collect();
+    take_out_shared(&mut moves, &mut factors);
+    for (((camera, total), factor), ([dx, dy], k)) in
+        cameras.iter_mut().zip(offsets).zip(zooms).zip(moves.into_iter().zip(factors))
+    {
         *camera = camera.shift(dx, dy).zoom(k);
         *total = [total[0] + dx, total[1] + dy];
         *factor *= k;

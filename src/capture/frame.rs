@@ -91,9 +91,7 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
     if !frames::have_ffmpeg() && used.clone().any(|&v| matches!(capture.views[v].frames, Frames::Video { .. })) {
         return Err(Error(frames::NO_FFMPEG.into()));
     }
-    let (lo, hi) = capture.smoke_box.ok_or_else(|| {
-        Error("the calibration gives no smoke box (voxel_matrix, voxel_scale): the grid needs one".into())
-    })?;
+    let (lo, hi) = capture.grid_box()?;
     for &v in used {
         let view = &capture.views[v];
         if !sees_box(&view.camera, &lo, &hi) {
@@ -153,8 +151,8 @@ pub fn fit_frame(
     rig: Option<&Rig>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<FrameFit> {
-    let smoke_box = capture.smoke_box.ok_or_else(|| Error("the calibration gives no smoke box".into()))?;
-    let fitted = fit(&images.training.cameras, &images.training.images[0], smoke_box, settings, rig, progress)?;
+    let fitted =
+        fit(&images.training.cameras, &images.training.images[0], capture.grid_box()?, settings, rig, progress)?;
     let mut held_out = Vec::new();
     for (&v, truth) in roles.held_out.iter().zip(&images.held_out) {
         let camera = &capture.views[v].camera;

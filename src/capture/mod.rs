@@ -92,6 +92,13 @@ impl Capture {
         self.views.iter().map(|v| v.frames.count()).min().unwrap_or(0)
     }
 
+    /// The smoke box, or an error: the density's grid needs one.
+    pub fn grid_box(&self) -> crate::Result<(Vec3, Vec3)> {
+        self.smoke_box.ok_or_else(|| {
+            crate::Error("the calibration gives no smoke box (voxel_matrix, voxel_scale): the grid needs one".into())
+        })
+    }
+
     /// The view called `name`, or an error listing the names.
     pub fn view(&self, name: &str) -> crate::Result<usize> {
         self.views.iter().position(|v| v.name == name).ok_or_else(|| {

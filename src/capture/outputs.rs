@@ -53,13 +53,15 @@ struct Quality {
     #[serde(serialize_with = "fmt::opt_f4")]
     psnr_oracle_shift_db: Option<f64>,
     /// A held-out camera's best magnification about its principal point and
-    /// its PSNR with it and the best shift after it
+    /// its PSNR and relative RMSE with it and the best shift after it
     /// (`super::protocol::Aligned`): the camera aligned as the training
     /// cameras are. Empty for training cameras.
     #[serde(serialize_with = "fmt::opt_f4")]
     oracle_magnification: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     psnr_oracle_aligned_db: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    rel_rmse_oracle_aligned: Option<f64>,
 }
 
 /// The manifest's settings.
@@ -161,6 +163,7 @@ fn write(
             psnr_oracle_shift_db: None,
             oracle_magnification: None,
             psnr_oracle_aligned_db: None,
+            rel_rmse_oracle_aligned: None,
         });
     }
     let single = result.held_out.len() == 1;
@@ -187,6 +190,7 @@ fn write(
             psnr_oracle_shift_db: held.oracle.with_shift.psnr,
             oracle_magnification: Some(held.aligned.magnification),
             psnr_oracle_aligned_db: held.aligned.score.psnr,
+            rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
         });
         eprintln!(
             "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",

@@ -83,10 +83,12 @@ impl Oracle {
 }
 
 /// Magnifications [`Aligned`] tries, about the camera's principal point:
-/// 0.97 to 1.03 in steps of 0.005, wider than the training cameras' fitted
-/// focal-length factors.
-pub const ORACLE_MAGNIFICATIONS: [f64; 13] =
-    [0.97, 0.975, 0.98, 0.985, 0.99, 0.995, 1.0, 1.005, 1.01, 1.015, 1.02, 1.025, 1.03];
+/// 0.95 to 1.05 in steps of 0.005, more than twice as wide as the training
+/// cameras' fitted focal-length factors.
+pub const ORACLE_MAGNIFICATIONS: [f64; 21] = [
+    0.95, 0.955, 0.96, 0.965, 0.97, 0.975, 0.98, 0.985, 0.99, 0.995, 1.0, 1.005, 1.01, 1.015, 1.02, 1.025, 1.03, 1.035,
+    1.04, 1.045, 1.05,
+];
 
 /// What a prediction would score had the held-out camera been aligned as
 /// the training cameras are (its focal lengths scaled about its principal

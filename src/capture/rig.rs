@@ -10,6 +10,7 @@
 //! so every model then sees the same cameras), and keeps per camera the
 //! median over those frames. The held-out camera is not part of it.
 
+use super::align::take_out_shared;
 use super::fit::{fit, Fit, FitSettings, ImageModel};
 use super::observe::observe;
 use super::Capture;
@@ -82,7 +83,7 @@ impl Rig {
         progress: &mut dyn FnMut(usize, &Fit),
     ) -> Result<Rig> {
         let start = std::time::Instant::now();
-        let smoke_box = capture.smoke_box.ok_or_else(|| Error("the calibration gives no smoke box".into()))?;
+        let smoke_box = capture.grid_box()?;
         let frames = calibration_frames(capture.frame_count());
         let settings = FitSettings {
             model: ImageModel::EmissionAbsorption,
@@ -131,15 +132,13 @@ impl Rig {
 }
 
 /// `cameras` with their offsets' mean taken out and their magnifications
-/// divided by their geometric mean: what every camera shares is the
-/// density's to explain.
+/// divided by their geometric mean ([`take_out_shared`]).
 fn centred(mut cameras: Vec<RigCamera>) -> Vec<RigCamera> {
-    let n = cameras.len().max(1) as f64;
-    let mean = [0, 1].map(|a| cameras.iter().map(|c| c.offset_px[a]).sum::<f64>() / n);
-    let log_mean = cameras.iter().map(|c| c.zoom.ln()).sum::<f64>() / n;
-    for c in &mut cameras {
-        c.offset_px = [c.offset_px[0] - mean[0], c.offset_px[1] - mean[1]];
-        c.zoom /= log_mean.exp();
+    let mut offsets: Vec<[f64; 2]> = cameras.iter().map(|c| c.offset_px).collect();
+    let mut zooms: Vec<f64> = cameras.iter().map(|c| c.zoom).collect();
+    take_out_shared(&mut offsets, &mut zooms);
+    for ((c, o), k) in cameras.iter_mut().zip(offsets).zip(zooms) {
+        (c.offset_px, c.zoom) = (o, k);
     }
     cameras
 }
