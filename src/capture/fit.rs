@@ -659,6 +659,7 @@ mod tests {
                 n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
                 n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
+                n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
                 "gains" => settings.gains,
                 "no_ambient" => !settings.ambient,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
