@@ -14,10 +14,7 @@
 use crate::ad::dual::{lane, with_tangents};
 use crate::image::Image;
 use nalgebra::{Matrix3, Vector3};
-use num_dual::DualSVec64;
-
-/// Three dual lanes: the offset's x and y, and the zoom.
-type D3 = DualSVec64<3>;
+use num_dual::DualNum;
 
 /// Gauss-Newton iterations per call.
 const ITERATIONS: usize = 8;
@@ -37,10 +34,10 @@ pub struct Warp {
 }
 
 /// The photograph `photo` at `(x, y)` (pixel units, pixel centres at
-/// half-integers), bilinear, 0 outside.
-fn sample(photo: &Image, x: D3, y: D3) -> D3 {
+/// half-integers), bilinear, 0 outside; in plain numbers or dual lanes.
+pub fn sample<D: DualNum<Primitive = f64> + Copy>(photo: &Image, x: D, y: D) -> D {
     let (u, v) = (x - 0.5, y - 0.5);
-    let (i0, j0) = (u.re.floor(), v.re.floor());
+    let (i0, j0) = (u.re().floor(), v.re().floor());
     let (fx, fy) = (u - i0, v - j0);
     let at = |i: f64, j: f64| -> f64 {
         if i < 0.0 || j < 0.0 || i >= photo.width as f64 || j >= photo.height as f64 {
@@ -49,7 +46,7 @@ fn sample(photo: &Image, x: D3, y: D3) -> D3 {
             photo.data[j as usize * photo.width + i as usize]
         }
     };
-    let one = D3::from_re(1.0);
+    let one = D::from(1.0);
     (one - fx) * (one - fy) * at(i0, j0)
         + fx * (one - fy) * at(i0 + 1.0, j0)
         + (one - fx) * fy * at(i0, j0 + 1.0)

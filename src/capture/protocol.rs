@@ -5,6 +5,7 @@
 //! over the crop. Relative RMSE over the crop goes beside it: about 90 % of
 //! the crop is black, so an all-black prediction already scores about 19 dB.
 
+use super::align::sample;
 use crate::image::Image;
 
 /// Downsampling, then a crop, then the metrics.
@@ -133,27 +134,13 @@ impl Aligned {
 /// the same camera with focal lengths `k` times as long would see.
 fn magnified(image: &Image, k: f64, [cx, cy]: [f64; 2]) -> Image {
     let (w, h) = (image.width, image.height);
-    let at = |x: i64, y: i64| {
-        if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
-            0.0
-        } else {
-            image.data[y as usize * w + x as usize]
-        }
-    };
-    let mut out = Image::zeros(w, h);
-    for y in 0..h {
-        // The source of pixel centre (x + 0.5, y + 0.5), in pixel-centre coordinates.
-        let sy = cy + (y as f64 + 0.5 - cy) / k - 0.5;
-        let (y0, fy) = (sy.floor(), sy - sy.floor());
-        for x in 0..w {
-            let sx = cx + (x as f64 + 0.5 - cx) / k - 0.5;
-            let (x0, fx) = (sx.floor(), sx - sx.floor());
-            let (x0, y0i) = (x0 as i64, y0 as i64);
-            out.data[y * w + x] = (1.0 - fy) * ((1.0 - fx) * at(x0, y0i) + fx * at(x0 + 1, y0i))
-                + fy * ((1.0 - fx) * at(x0, y0i + 1) + fx * at(x0 + 1, y0i + 1));
-        }
-    }
-    out
+    let data = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+            sample(image, cx + (x - cx) / k, cy + (y - cy) / k)
+        })
+        .collect();
+    Image { width: w, height: h, data }
 }
 
 /// The mean squared error behind a score (0 for a perfect one).
