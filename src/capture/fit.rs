@@ -41,7 +41,7 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum ImageModel {
-    /// The lights scattered up to [`MULTIPLE_ORDERS`] times, plus the ambient term.
+    /// The lights scattered several times (`orders` in the fit settings), plus the ambient term.
     Multiple,
     /// The lights scattered once, plus the ambient term.
     Single,
@@ -49,9 +49,6 @@ pub enum ImageModel {
     /// attenuated (the image model of PINF and HyFluid).
     EmissionAbsorption,
 }
-
-/// Scattering orders of [`ImageModel::Multiple`].
-pub const MULTIPLE_ORDERS: u32 = 3;
 
 impl ImageModel {
     /// The name in files and tables.
@@ -63,10 +60,11 @@ impl ImageModel {
         }
     }
 
-    /// Most scattering events on a light path.
-    fn max_order(self) -> u32 {
+    /// Most scattering events on a light path, where the multiple model
+    /// scatters up to `orders` times.
+    fn max_order(self, orders: u32) -> u32 {
         match self {
-            ImageModel::Multiple => MULTIPLE_ORDERS,
+            ImageModel::Multiple => orders,
             _ => 1,
         }
     }
@@ -116,6 +114,9 @@ pub struct FitSettings {
     pub refit_every: usize,
     /// Photons per render (multiple scattering only).
     pub photons: u64,
+    /// Most scattering events on a light path of the multiple model
+    /// (orders 2 and up by photon mapping).
+    pub orders: u32,
     /// Camera samples per pixel per update. The lit models' pixels are
     /// noisy at 1 (each sample gathers the light at one jittered point);
     /// on the settings study's frames 2 gained 0.3 dB on the scoring camera
@@ -216,6 +217,7 @@ impl Default for FitSettings {
             start_shape: StartShape::Even,
             refit_every: 10,
             photons: 20_000,
+            orders: 3,
             spp: 2,
             g: 0.6,
             albedo: 1.0,
@@ -257,6 +259,9 @@ impl FitSettings {
         }
         if self.refit_every == 0 || self.spp == 0 {
             return bad("refit_every and spp must be at least 1");
+        }
+        if !(2..=16).contains(&self.orders) {
+            return bad("orders must be in 2..=16 (1 is the single model)");
         }
         if !(0.0..1.0).contains(&self.threshold) {
             return bad("threshold must be in [0, 1)");
@@ -361,7 +366,7 @@ pub fn fit(
             sigma_t_scale: 1.0,
             albedo: settings.albedo,
             g: settings.g,
-            max_order: settings.model.max_order(),
+            max_order: settings.model.max_order(settings.orders),
             emission: 0.0,
         },
         lights: if settings.model.lit() { candidate_lights(&lo, &hi) } else { Vec::new() },
@@ -675,6 +680,7 @@ mod tests {
                 n if n.starts_with("margin_") => settings.aligned_margin.to_string() == n["margin_".len()..],
                 "darkest" => settings.start_shape == StartShape::Darkest,
                 "geometric_mean" => settings.start_shape == StartShape::GeometricMean,
+                n if n.starts_with("orders_") => settings.orders.to_string() == n["orders_".len()..],
                 n if n.starts_with("photons_") => settings.photons.to_string() == n["photons_".len()..],
                 n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
