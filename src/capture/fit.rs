@@ -76,7 +76,7 @@ impl ImageModel {
 }
 
 /// How a frame is fitted. Every default was chosen on frames and cameras
-/// other than those reported (docs/real_captures.md).
+/// other than those reported (docs/studies/real_settings.md).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FitSettings {
@@ -102,7 +102,7 @@ pub struct FitSettings {
     /// nothing and 0.001 lost 0.7-1.4 dB on the scoring camera.
     pub sparsity: f64,
     /// Optical depth across the hull's mean chord at the start. On the
-    /// settings study's frames (docs/real_captures.md) 1 and 2 scored best
+    /// settings study's frames (docs/studies/real_settings.md) 1 and 2 scored best
     /// on the scoring camera, within 0.1 dB of each other for every model;
     /// 1 fits the training cameras better.
     pub start_depth: f64,
