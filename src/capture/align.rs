@@ -12,7 +12,9 @@
 //! focal lengths by `k` then moves its render onto the photograph.
 
 use crate::ad::dual::{lane, with_tangents};
+use crate::error::{Error, Result};
 use crate::image::Image;
+use crate::scene::Camera;
 use nalgebra::{Matrix3, Vector3};
 use num_dual::DualNum;
 
@@ -119,6 +121,31 @@ pub fn warp(rendered: &Image, photo: &Image, centre: [f64; 2], zoom: bool) -> Wa
         }
     }
     Warp { offset: [w[0], w[1]], zoom: w[2] }
+}
+
+/// Cameras' corrections found before a fit (a capture's rig, [`super::rig`]):
+/// the fit starts from the corrected cameras and does not move them again.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Corrections {
+    /// Per camera, how far its principal point moves, in pixels of the
+    /// capture's full resolution (right, down).
+    pub offsets_px: Vec<[f64; 2]>,
+    /// Per camera, the factor its focal lengths are multiplied by.
+    pub zooms: Vec<f64>,
+}
+
+impl Corrections {
+    /// `cameras` (at 1/`factor` of the capture's resolution, in the
+    /// corrections' order) corrected, and the offsets in their pixels.
+    pub fn apply(&self, cameras: &[Camera], factor: usize) -> Result<(Vec<Camera>, Vec<[f64; 2]>)> {
+        if cameras.len() != self.zooms.len() || self.offsets_px.len() != self.zooms.len() {
+            return Err(Error(format!("corrections for {} cameras, the fit has {}", self.zooms.len(), cameras.len())));
+        }
+        let f = factor as f64;
+        let offsets: Vec<[f64; 2]> = self.offsets_px.iter().map(|o| [o[0] / f, o[1] / f]).collect();
+        let moved = cameras.iter().zip(&self.zooms).zip(&offsets).map(|((cam, &k), o)| cam.shift(o[0], o[1]).zoom(k));
+        Ok((moved.collect(), offsets))
+    }
 }
 
 /// Takes out of per-camera `offsets` their mean and divides `factors`

@@ -18,11 +18,10 @@
 //! [`FitSettings::start_depth`] across the hull) and moves only where
 //! attenuation in the images asks for it.
 
-use super::align::{take_out_shared, warp};
+use super::align::{take_out_shared, warp, Corrections};
 use super::lighting::{candidate_lights, fit_gains, fit_lights, light_share, place_lights, weights_of};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use super::priors::{smoothness, sparsity};
-use super::rig::Rig;
 use crate::error::{Error, Result};
 use crate::grad::loss::mse;
 use crate::grad::reverse::{reverse_gradient, Subset};
@@ -150,6 +149,12 @@ pub struct FitSettings {
     /// multiple scattering and emission-absorption (0.5-0.6 dB on the thin
     /// frame 5) and 0.4 dB for single scattering.
     pub shared_alignment: bool,
+    /// With `shared_alignment`, the calibration frames the training
+    /// cameras are aligned on ([`super::rig::calibration_frames`]).
+    pub rig_frames: usize,
+    /// With `shared_alignment`, the working resolution of the calibration
+    /// frames' fits, 1/`rig_factor` of the capture's; none: `factor`.
+    pub rig_factor: Option<usize>,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
     /// carved through the aligned cameras with this margin. Before, the
@@ -225,6 +230,8 @@ impl Default for FitSettings {
             align: true,
             zoom: true,
             shared_alignment: true,
+            rig_frames: 3,
+            rig_factor: None,
             aligned_margin: 20.0,
             lights: 0,
             gains: true,
@@ -239,8 +246,11 @@ impl FitSettings {
     /// One-line errors for settings no fit can run with.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str| Err(Error(format!("fit settings: {what}")));
-        if self.factor == 0 {
-            return bad("factor must be at least 1");
+        if self.factor == 0 || self.rig_factor == Some(0) {
+            return bad("factor and rig_factor must be at least 1");
+        }
+        if self.rig_frames == 0 {
+            return bad("rig_frames must be at least 1");
         }
         if self.updates.is_empty() || self.resolution >> (self.updates.len() - 1) < 2 {
             return bad("resolution must give at least 2 voxels along the longest edge at the coarsest level");
@@ -332,21 +342,22 @@ impl Fit {
 
 /// Fits the frame whose training images (at 1/`settings.factor` of the
 /// capture's resolution) are `images`, seen by `cameras` (at the same
-/// resolution), with the density on a grid over `smoke_box`. With a `rig`
-/// the cameras are aligned by it from the start and not again.
+/// resolution), with the density on a grid over `smoke_box`. With `fixed`
+/// corrections (a capture's rig) the cameras are corrected by them from the
+/// start and not aligned again.
 pub fn fit(
     cameras: &[Camera],
     images: &[Image],
     smoke_box: (Vec3, Vec3),
     settings: &FitSettings,
-    rig: Option<&Rig>,
+    fixed: Option<&Corrections>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
     settings.validate()?;
-    let (cameras, mut offsets, mut zooms) = match rig {
-        Some(rig) => {
-            let (cameras, offsets) = rig.apply(cameras, settings.factor)?;
-            (cameras, offsets, rig.cameras.iter().map(|c| c.zoom).collect())
+    let (cameras, mut offsets, mut zooms) = match fixed {
+        Some(fixed) => {
+            let (cameras, offsets) = fixed.apply(cameras, settings.factor)?;
+            (cameras, offsets, fixed.zooms.clone())
         }
         None => (cameras.to_vec(), vec![[0.0; 2]; cameras.len()], vec![1.0; cameras.len()]),
     };
@@ -389,7 +400,7 @@ pub fn fit(
     for (level, &updates) in settings.updates.iter().enumerate() {
         let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
         let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
-        let aligned = rig.is_some() || offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
+        let aligned = fixed.is_some() || offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
         let margin = if aligned { settings.aligned_margin } else { SILHOUETTE_MARGIN_PX };
         let silhouettes: Vec<Vec<bool>> = codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
         let hull = carve(&grid, &scene.cameras, &silhouettes);
@@ -408,7 +419,7 @@ pub fn fit(
         for update in 0..updates {
             scene.density = density.clone();
             if update % settings.refit_every == 0 {
-                if let (true, true, None, Some(rendered)) = (settings.align, level > 0, rig, &last) {
+                if let (true, true, None, Some(rendered)) = (settings.align, level > 0, fixed, &last) {
                     align_cameras(&mut scene.cameras, &mut offsets, &mut zooms, settings.zoom, rendered, &images);
                 }
                 let targets = censored(&images, last.as_deref(), threshold, &gains);
@@ -680,6 +691,8 @@ mod tests {
                 n if n.starts_with("margin_") => settings.aligned_margin.to_string() == n["margin_".len()..],
                 "darkest" => settings.start_shape == StartShape::Darkest,
                 "geometric_mean" => settings.start_shape == StartShape::GeometricMean,
+                n if n.starts_with("rig_frames_") => settings.rig_frames.to_string() == n["rig_frames_".len()..],
+                n if n.starts_with("rig_factor_") => settings.rig_factor == n["rig_factor_".len()..].parse().ok(),
                 n if n.starts_with("orders_") => settings.orders.to_string() == n["orders_".len()..],
                 n if n.starts_with("photons_") => settings.photons.to_string() == n["photons_".len()..],
                 n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],

@@ -151,8 +151,15 @@ pub fn fit_frame(
     rig: Option<&Rig>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<FrameFit> {
-    let fitted =
-        fit(&images.training.cameras, &images.training.images[0], capture.grid_box()?, settings, rig, progress)?;
+    let fixed = rig.map(Rig::corrections);
+    let fitted = fit(
+        &images.training.cameras,
+        &images.training.images[0],
+        capture.grid_box()?,
+        settings,
+        fixed.as_ref(),
+        progress,
+    )?;
     let mut held_out = Vec::new();
     for (&v, truth) in roles.held_out.iter().zip(&images.held_out) {
         let camera = &capture.views[v].camera;

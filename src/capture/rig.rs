@@ -10,16 +10,12 @@
 //! so every model then sees the same cameras), and keeps per camera the
 //! median over those frames. The held-out camera is not part of it.
 
-use super::align::take_out_shared;
+use super::align::{take_out_shared, Corrections};
 use super::fit::{fit, Fit, FitSettings, ImageModel};
 use super::observe::observe;
 use super::Capture;
-use crate::error::{Error, Result};
-use crate::scene::Camera;
+use crate::error::Result;
 use serde::{Deserialize, Serialize};
-
-/// Calibration frames a rig is fitted on.
-pub const RIG_FRAMES: usize = 3;
 
 /// One training camera's share of a rig.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,12 +43,12 @@ pub struct Rig {
     pub seconds: f64,
 }
 
-/// [`RIG_FRAMES`] frames of a clip of `count` frames, at 1/6, 1/2 and 5/6 of
-/// it (rounded down): away from both ends, where the smoke may be a thin
-/// column or leave the box. For 120 frames, 19, 59 and 99.
-pub fn calibration_frames(count: usize) -> Vec<usize> {
+/// `n` frames of a clip of `count` frames, at the middles of `n` equal
+/// parts of it (rounded down): away from both ends, where the smoke may be a
+/// thin column or leave the box. For 3 of 120 frames, 19, 59 and 99.
+pub fn calibration_frames(count: usize, n: usize) -> Vec<usize> {
     let last = count.saturating_sub(1);
-    let mut frames: Vec<usize> = (0..RIG_FRAMES).map(|i| (2 * i + 1) * last / (2 * RIG_FRAMES)).collect();
+    let mut frames: Vec<usize> = (0..n).map(|i| (2 * i + 1) * last / (2 * n)).collect();
     frames.dedup();
     frames
 }
@@ -84,11 +80,12 @@ impl Rig {
     ) -> Result<Rig> {
         let start = std::time::Instant::now();
         let smoke_box = capture.grid_box()?;
-        let frames = calibration_frames(capture.frame_count());
+        let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
         let settings = FitSettings {
             model: ImageModel::EmissionAbsorption,
             align: true,
             shared_alignment: false,
+            factor: settings.rig_factor.unwrap_or(settings.factor),
             ..settings.clone()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;
@@ -116,18 +113,12 @@ impl Rig {
         Ok(Rig { frames, cameras, seconds: start.elapsed().as_secs_f64() })
     }
 
-    /// `cameras` (the training cameras at 1/`factor` of the capture's
-    /// resolution, in the rig's order) with the rig's corrections, and the
-    /// offsets in their pixels.
-    pub fn apply(&self, cameras: &[Camera], factor: usize) -> Result<(Vec<Camera>, Vec<[f64; 2]>)> {
-        if cameras.len() != self.cameras.len() {
-            return Err(Error(format!("the rig has {} cameras, the fit {}", self.cameras.len(), cameras.len())));
+    /// The corrections a fit starts from, in the training cameras' order.
+    pub fn corrections(&self) -> Corrections {
+        Corrections {
+            offsets_px: self.cameras.iter().map(|c| c.offset_px).collect(),
+            zooms: self.cameras.iter().map(|c| c.zoom).collect(),
         }
-        let f = factor as f64;
-        let offsets: Vec<[f64; 2]> = self.cameras.iter().map(|c| [c.offset_px[0] / f, c.offset_px[1] / f]).collect();
-        let moved =
-            cameras.iter().zip(&self.cameras).zip(&offsets).map(|((cam, r), o)| cam.shift(o[0], o[1]).zoom(r.zoom));
-        Ok((moved.collect(), offsets))
     }
 }
 
@@ -147,7 +138,7 @@ fn centred(mut cameras: Vec<RigCamera>) -> Vec<RigCamera> {
 mod tests {
     use super::*;
     use crate::math::Vec3;
-    use crate::scene::Lens;
+    use crate::scene::{Camera, Lens};
 
     fn camera(name: &str, offset_px: [f64; 2], zoom: f64) -> RigCamera {
         RigCamera { name: name.into(), offset_px, zoom }
@@ -175,22 +166,23 @@ mod tests {
             cameras: vec![camera("a", [16.0, -8.0], 1.05), camera("b", [0.0; 2], 1.0)],
             seconds: 0.0,
         };
-        let (moved, offsets) = rig.apply(&[base.clone(), base.clone()], 8).unwrap();
+        let (moved, offsets) = rig.corrections().apply(&[base.clone(), base.clone()], 8).unwrap();
         assert_eq!(offsets, vec![[2.0, -1.0], [0.0, 0.0]]);
         let ([fx, fy, cx, cy], [fx0, fy0, cx0, cy0]) = (moved[0].intrinsics(), base.intrinsics());
         assert!((cx - cx0 - 2.0).abs() < 1e-12 && (cy - cy0 + 1.0).abs() < 1e-12);
         assert!((fx / fx0 - 1.05).abs() < 1e-12 && (fy / fy0 - 1.05).abs() < 1e-12);
         assert_eq!(moved[1], base);
-        assert!(rig.apply(&[base], 8).is_err(), "a rig of two cameras does not fit one");
+        assert!(rig.corrections().apply(&[base], 8).is_err(), "a rig of two cameras does not fit one");
     }
 
     #[test]
     fn calibration_frames_are_inside_the_clip_and_spread_over_it() {
-        assert_eq!(calibration_frames(120), vec![19, 59, 99]);
-        assert_eq!(calibration_frames(1), vec![0]);
-        assert_eq!(calibration_frames(0), vec![0]);
+        assert_eq!(calibration_frames(120, 3), vec![19, 59, 99]);
+        assert_eq!(calibration_frames(120, 5), vec![11, 35, 59, 83, 107]);
+        assert_eq!(calibration_frames(1, 3), vec![0]);
+        assert_eq!(calibration_frames(0, 3), vec![0]);
         for count in 1..50 {
-            let f = calibration_frames(count);
+            let f = calibration_frames(count, 3);
             assert!(f.iter().all(|&x| x < count) && f.windows(2).all(|w| w[0] < w[1]), "{count}: {f:?}");
         }
     }
