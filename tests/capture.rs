@@ -362,3 +362,56 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     // Against the same photograph a smaller error is a smaller relative RMSE.
     assert!(column("rel_rmse_oracle_aligned") <= column("rel_rmse"), "{quality}");
 }
+
+#[test]
+fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
+    let dir = temp_dir("capture_fit_transforms");
+    for name in ["a", "b"] {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        write_png(&dir.join(name).join("000.png"), 128, 96, false, disc);
+    }
+    let calib = json!({"camera_angle_x": 0.6, "w": 128, "h": 96, "frames": [
+        {"file_path": "a", "transform_matrix": looking_at_origin(0.0, 2.0)},
+        {"file_path": "b", "transform_matrix": looking_at_origin(2.0, 0.0)},
+    ]});
+    std::fs::write(dir.join("transforms.json"), calib.to_string()).unwrap();
+    let settings = dir.join("fit.json");
+    std::fs::write(&settings, json!({"resolution": 8, "updates": [10, 10], "threshold": 0.0}).to_string()).unwrap();
+    let out = dir.join("out");
+    let fit = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_dualphoton"))
+            .args(["fit", "--capture"])
+            .arg(dir.join("transforms.json"))
+            .args(["--frame", "0", "--out"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let refused = |extra: &[&str], says: &str| {
+        let bad = fit(extra);
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(!bad.status.success() && err.contains(says), "{extra:?}: {err}");
+    };
+    // A transforms.json has no smoke box: the error says how to give one.
+    refused(&[], "--box");
+    refused(&["--box", "0.5,-0.5,-0.5,-0.5,0.5,0.5"], "--box: ");
+    refused(&["--box", "-0.5,-0.5,-0.5,0.5,0.5"], "--box: ");
+    refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--fit-settings", "missing.json"], "--fit-settings: ");
+    // Options of the synthetic fit mean nothing to a capture's.
+    refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--spp", "4"], "--spp");
+    assert!(!out.exists(), "a refused fit writes nothing");
+
+    let settings = settings.to_str().unwrap();
+    let ok = fit(&["--box", "-0.5,-0.5,-0.5,0.5,0.5,0.5", "--fit-settings", settings]);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let manifest: Value = serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["bbox_min"], json!([-0.5, -0.5, -0.5]), "{manifest}");
+    assert_eq!((manifest["shape"].clone(), manifest["fit"]["threshold"].clone()), (json!([8, 8, 8]), json!(0.0)));
+    let density = npy::read(&out.join("density.npy"), "density.npy").unwrap();
+    assert!(density.data.iter().all(|v| v.is_finite() && *v >= 0.0) && density.data.iter().any(|&v| v > 0.0));
+    // No test camera: nothing held out to render, both cameras scored as training.
+    assert!(!out.join("held_out.npy").exists());
+    let quality = std::fs::read_to_string(out.join("fit_quality.csv")).unwrap();
+    assert_eq!(quality.lines().filter(|l| l.contains(",training,")).count(), 2, "{quality}");
+}

@@ -76,12 +76,7 @@ fn run(args: Args) -> Result<()> {
     let capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
     let fit_settings = match &args.fit_settings {
-        Some(path) => {
-            let text =
-                std::fs::read_to_string(path).map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?;
-            serde_json::from_str::<FitSettings>(&text)
-                .map_err(|e| Error(format!("--fit-settings: {}: {e}", path.display())))?
-        }
+        Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
         None => FitSettings::default(),
     };
     let dropped = args.drop.iter().map(|name| capture.view(name)).collect::<Result<Vec<usize>>>()?;

@@ -161,11 +161,30 @@ struct FitArgs {
     /// A real capture instead of --scene and --images: its calibration (info.json or transforms.json, or
     /// the folder holding it). Fits one --frame on its training cameras (lights, emission and density)
     /// and renders its test cameras at full resolution (OUT/held_out.npy).
-    #[arg(long, conflicts_with_all = ["scene", "images", "held_out", "prior", "study"])]
+    #[arg(long, conflicts_with_all = [
+        "scene", "images", "held_out", "prior", "study", "iterations", "time_budget", "refine", "photons", "spp",
+        "judge_photons",
+    ])]
     capture: Option<PathBuf>,
     /// The frame of --capture to fit.
     #[arg(long, requires = "capture")]
     frame: Option<usize>,
+    /// The smoke box of --capture, where the density lives, in the capture's units: x0,y0,z0,x1,y1,z1
+    /// (lower corner, upper corner). Default: the calibration's (info.json's voxel_matrix and
+    /// voxel_scale); a transforms.json has none.
+    #[arg(
+        long = "box",
+        requires = "capture",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        value_name = "X0,Y0,Z0,X1,Y1,Z1"
+    )]
+    smoke_box: Option<Vec<f64>>,
+    /// Fit settings of --capture (JSON, fields of dualphoton::capture::fit::FitSettings; those not given
+    /// keep their defaults; the seed is --seed's), e.g. {"threshold": 0} for a capture whose dark pixels were
+    /// not set to 0.
+    #[arg(long, requires = "capture")]
+    fit_settings: Option<PathBuf>,
     /// ScalarFlow's own camera file (GlobTrans's scalaFlow_cameras.json): each camera of --capture gets
     /// the focal length of its vertical field of view instead of the calibration's horizontal one.
     #[arg(long, requires = "capture")]
@@ -311,10 +330,19 @@ fn fit(a: FitArgs) -> Result<()> {
     set_threads(a.threads)?;
     if let Some(capture) = &a.capture {
         let frame = a.frame.ok_or_else(|| Error::new("--frame: give the frame of --capture to fit"))?;
-        let settings = FitSettings { seed: a.seed, ..FitSettings::default() };
+        let smoke_box = match &a.smoke_box {
+            Some(corners) => Some(dualphoton::capture::box_of(corners).map_err(|e| Error(format!("--box: {e}")))?),
+            None => None,
+        };
+        let settings = match &a.fit_settings {
+            Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
+            None => FitSettings::default(),
+        };
+        let settings = FitSettings { seed: a.seed, ..settings };
         return dualphoton::capture::outputs::fit_and_write(
             capture,
             a.focal_lengths.as_deref(),
+            smoke_box,
             frame,
             &settings,
             &a.out,

@@ -243,6 +243,16 @@ impl Default for FitSettings {
 }
 
 impl FitSettings {
+    /// The settings in the JSON file at `path` (fields not given keep their
+    /// defaults), checked.
+    pub fn read(path: &std::path::Path) -> Result<FitSettings> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+        let settings: FitSettings =
+            serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+        settings.validate()?;
+        Ok(settings)
+    }
+
     /// One-line errors for settings no fit can run with.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str| Err(Error(format!("fit settings: {what}")));

@@ -76,6 +76,21 @@ pub struct View {
     pub held_out: bool,
 }
 
+/// The box of `corners` (lower x, y, z, then upper x, y, z, in a capture's
+/// units), or an error: six finite numbers, each lower below its upper.
+pub fn box_of(corners: &[f64]) -> crate::Result<(Vec3, Vec3)> {
+    let bad = || {
+        crate::Error(format!("{corners:?}: give six finite numbers, x0,y0,z0,x1,y1,z1 with x0 < x1, y0 < y1, z0 < z1"))
+    };
+    let [x0, y0, z0, x1, y1, z1] = <[f64; 6]>::try_from(corners).map_err(|_| bad())?;
+    let (lo, hi) = (Vec3::new(x0, y0, z0), Vec3::new(x1, y1, z1));
+    if corners.iter().all(|v| v.is_finite()) && lo.x < hi.x && lo.y < hi.y && lo.z < hi.z {
+        Ok((lo, hi))
+    } else {
+        Err(bad())
+    }
+}
+
 /// A capture: its cameras and, where the calibration gives it, the box the
 /// smoke is in (world units of the calibration).
 #[derive(Clone, Debug, PartialEq)]
@@ -95,7 +110,9 @@ impl Capture {
     /// The smoke box, or an error: the density's grid needs one.
     pub fn grid_box(&self) -> crate::Result<(Vec3, Vec3)> {
         self.smoke_box.ok_or_else(|| {
-            crate::Error("the calibration gives no smoke box (voxel_matrix, voxel_scale): the grid needs one".into())
+            crate::Error(
+                "the calibration gives no smoke box (voxel_matrix, voxel_scale): give it (dualphoton fit --box)".into(),
+            )
         })
     }
 

@@ -16,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::experiment::Run;
 use crate::io::rows::{fmt, write_rows};
 use crate::io::{npy, png};
+use crate::math::Vec3;
 use crate::scene::file;
 use serde::Serialize;
 use std::path::Path;
@@ -81,15 +82,18 @@ struct Settings<'a> {
 
 /// Fits frame `frame` of the capture at `calibration_path` (a file or the
 /// folder holding it), with the focal lengths of ScalarFlow's camera file
-/// `focal_lengths` if given, and writes everything into `out`.
+/// `focal_lengths` and the density on `smoke_box` if given (else the
+/// calibration's), and writes everything into `out`.
 pub fn fit_and_write(
     calibration_path: &Path,
     focal_lengths: Option<&Path>,
+    smoke_box: Option<(Vec3, Vec3)>,
     frame: usize,
     settings: &FitSettings,
     out: &Path,
 ) -> Result<()> {
-    let capture = calibration::open(calibration_path, focal_lengths)?;
+    let mut capture = calibration::open(calibration_path, focal_lengths)?;
+    capture.smoke_box = smoke_box.or(capture.smoke_box);
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;

@@ -231,7 +231,7 @@ mod tests {
         let truth = blob(20.0, 15.0, 0.8);
         let dim = Oracle::of(&blob(20.0, 15.0, 0.5), &truth);
         assert!((dim.gain - 1.6).abs() < 1e-9, "{dim:?}");
-        assert!(dim.with_gain.psnr.map_or(true, |p| p > 200.0), "a gain that undoes the dimming is exact: {dim:?}");
+        assert!(dim.with_gain.psnr.is_none_or(|p| p > 200.0), "a gain that undoes the dimming is exact: {dim:?}");
         let moved = Oracle::of(&blob(17.0, 17.0, 0.8), &truth);
         assert_eq!(moved.shift, [3, -2], "{moved:?}");
         // Exact but for the blob's tail that the move takes past the edge.
