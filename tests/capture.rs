@@ -397,13 +397,13 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     refused(&[], "--box");
     refused(&["--box", "0.5,-0.5,-0.5,-0.5,0.5,0.5"], "--box: ");
     refused(&["--box", "-0.5,-0.5,-0.5,0.5,0.5"], "--box: ");
-    refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--fit-settings", "missing.json"], "--fit-settings: ");
+    refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--study", "missing.json"], "--study: ");
     // Options of the synthetic fit mean nothing to a capture's.
     refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--spp", "4"], "--spp");
     assert!(!out.exists(), "a refused fit writes nothing");
 
     let settings = settings.to_str().unwrap();
-    let ok = fit(&["--box", "-0.5,-0.5,-0.5,0.5,0.5,0.5", "--fit-settings", settings]);
+    let ok = fit(&["--box", "-0.5,-0.5,-0.5,0.5,0.5,0.5", "--study", settings]);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let manifest: Value = serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
     assert_eq!(manifest["bbox_min"], json!([-0.5, -0.5, -0.5]), "{manifest}");

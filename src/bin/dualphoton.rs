@@ -162,7 +162,7 @@ struct FitArgs {
     /// the folder holding it). Fits one --frame on its training cameras (lights, emission and density)
     /// and renders its test cameras at full resolution (OUT/held_out.npy).
     #[arg(long, conflicts_with_all = [
-        "scene", "images", "held_out", "prior", "study", "iterations", "time_budget", "refine", "photons", "spp",
+        "scene", "images", "held_out", "prior", "iterations", "time_budget", "refine", "photons", "spp",
         "judge_photons",
     ])]
     capture: Option<PathBuf>,
@@ -180,11 +180,6 @@ struct FitArgs {
         value_name = "X0,Y0,Z0,X1,Y1,Z1"
     )]
     smoke_box: Option<Vec<f64>>,
-    /// Fit settings of --capture (JSON, fields of dualphoton::capture::fit::FitSettings; those not given
-    /// keep their defaults; the seed is --seed's), e.g. {"threshold": 0} for a capture whose dark pixels were
-    /// not set to 0.
-    #[arg(long, requires = "capture")]
-    fit_settings: Option<PathBuf>,
     /// ScalarFlow's own camera file (GlobTrans's scalaFlow_cameras.json): each camera of --capture gets
     /// the focal length of its vertical field of view instead of the calibration's horizontal one.
     #[arg(long, requires = "capture")]
@@ -215,7 +210,9 @@ struct FitArgs {
     #[arg(long)]
     threads: Option<usize>,
     /// A study file: JSON setting any library setting by name, {"paper": {"train": {...}, "refine": {...}},
-    /// "prior": {...}} (experiments/studies/ has examples); the options above override it.
+    /// "prior": {...}} (experiments/studies/ has examples); the options above override it. With --capture,
+    /// the capture fit's settings (fields of dualphoton::capture::fit::FitSettings), e.g. {"threshold": 0}
+    /// for photographs whose dark pixels were not set to 0.
     #[arg(long)]
     study: Option<PathBuf>,
 }
@@ -334,8 +331,8 @@ fn fit(a: FitArgs) -> Result<()> {
             Some(corners) => Some(dualphoton::capture::box_of(corners).map_err(|e| Error(format!("--box: {e}")))?),
             None => None,
         };
-        let settings = match &a.fit_settings {
-            Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
+        let settings = match &a.study {
+            Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--study: {e}")))?,
             None => FitSettings::default(),
         };
         let settings = FitSettings { seed: a.seed, ..settings };
