@@ -9,9 +9,9 @@
 //!   read as PINF and HyFluid read them: with the matrix's first and third
 //!   columns exchanged, the box is `M (s * u)` for `u` in `[0, 1]^3`.
 //! - **`transforms.json`** (NeRF, instant-ngp, nerfstudio): `frames`, a list
-//!   of `{file_path, transform_matrix}`, one per camera; `file_path` names a
-//!   video, an image (a one-frame capture) or a folder of images (one per
-//!   frame, in name order). Intrinsics at the top or per camera: either
+//!   of `{file_path, transform_matrix}`, one per camera; `file_path` names
+//!   an image (a one-frame capture) or a folder of images (one per frame, in
+//!   name order). Intrinsics at the top or per camera: either
 //!   `camera_angle_x` or `fl_x`, `fl_y`, `cx`, `cy`; the size `w`, `h`.
 //!   No smoke box: the user gives it.
 //!
