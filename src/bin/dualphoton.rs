@@ -203,9 +203,9 @@ struct FitArgs {
         FitQualitySettings::default().spp, FitQualitySettings::default().photons
     ))]
     judge_photons: Option<u64>,
-    /// Seed of every random stream of the fit.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    /// Seed of every random stream of the fit [default: the --study file's, else 0].
+    #[arg(long)]
+    seed: Option<u64>,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long)]
     threads: Option<usize>,
@@ -335,7 +335,7 @@ fn fit(a: FitArgs) -> Result<()> {
             Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--study: {e}")))?,
             None => FitSettings::default(),
         };
-        let settings = FitSettings { seed: a.seed, ..settings };
+        let settings = FitSettings { seed: a.seed.unwrap_or(settings.seed), ..settings };
         return dualphoton::capture::outputs::fit_and_write(
             capture,
             a.focal_lengths.as_deref(),
@@ -368,7 +368,11 @@ fn fit(a: FitArgs) -> Result<()> {
     let all = read_targets(images, &scene, "--images")?;
     let (targets, held) = all.split_at(n_train);
     let prior = choose_prior(a.prior.as_deref(), scene.density.shape)?;
-    let method = if prior.is_some() { methods.prior } else { methods.paper }.seeded(a.seed);
+    let method = if prior.is_some() { methods.prior } else { methods.paper };
+    let method = match a.seed {
+        Some(seed) => method.seeded(seed),
+        None => method,
+    };
 
     let mut settings = ReconstructSettings::new(method, scene.render.photons, scene.render.spp);
     settings.prior = prior;
@@ -665,4 +669,14 @@ fn render_path_cmd(scene: &Scene, out: &Path, white: Option<f64>) -> Result<()> 
     }
     eprintln!("path: {} samples in {:.1} s", r.samples, start.elapsed().as_secs_f64());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    /// clap checks its attributes (ids that conflicts and requirements
+    /// name, defaults) only in debug builds; the tests run in release.
+    #[test]
+    fn the_command_line_is_consistent() {
+        <super::Cli as clap::CommandFactory>::command().debug_assert();
+    }
 }

@@ -9,7 +9,8 @@
 //! photograph sampled bilinearly, `c` the principal point, `d` the offset
 //! and `k = 1 + zoom`, all carried in three dual lanes: the Jacobian is
 //! exact. Moving the camera's principal point by `d` and multiplying its
-//! focal lengths by `k` then moves its render onto the photograph.
+//! focal lengths by `k` then moves its render onto the photograph
+//! ([`Corrections`], the form a capture's rig hands a fit).
 
 use crate::ad::dual::{lane, with_tangents};
 use crate::error::{Error, Result};
@@ -183,6 +184,28 @@ fn solve(g: &Vector3<f64>, h: &Matrix3<f64>, zoom: bool) -> Option<Vector3<f64>>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Vec3;
+    use crate::scene::Lens;
+
+    #[test]
+    fn corrections_move_each_camera_in_the_working_resolutions_pixels() {
+        let base = Camera {
+            position: Vec3::new(0.0, 0.0, 2.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            lens: Lens::Pinhole { fx: 50.0, fy: 50.0, cx: 32.0, cy: 24.0 },
+            width: 64,
+            height: 48,
+        };
+        let fixed = Corrections { offsets_px: vec![[16.0, -8.0], [0.0; 2]], zooms: vec![1.05, 1.0] };
+        let (moved, offsets) = fixed.apply(&[base.clone(), base.clone()], 8).unwrap();
+        assert_eq!(offsets, vec![[2.0, -1.0], [0.0, 0.0]]);
+        let ([fx, fy, cx, cy], [fx0, fy0, cx0, cy0]) = (moved[0].intrinsics(), base.intrinsics());
+        assert!((cx - cx0 - 2.0).abs() < 1e-12 && (cy - cy0 + 1.0).abs() < 1e-12);
+        assert!((fx / fx0 - 1.05).abs() < 1e-12 && (fy / fy0 - 1.05).abs() < 1e-12);
+        assert_eq!(moved[1], base);
+        assert!(fixed.apply(&[base], 8).is_err(), "corrections of two cameras do not fit one");
+    }
 
     /// A smooth blob centred at `(cx, cy)`.
     fn blob(w: usize, h: usize, cx: f64, cy: f64) -> Image {

@@ -97,12 +97,15 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
         if !sees_box(&view.camera, &lo, &hi) {
             return Err(Error(format!("camera {}: the smoke box is not in its image", view.name)));
         }
-        if roles.training.contains(&v) && (view.camera.width < settings.factor || view.camera.height < settings.factor)
-        {
-            return Err(Error(format!(
-                "camera {}: its {}x{} image is smaller than the working resolution's factor {}",
-                view.name, view.camera.width, view.camera.height, settings.factor
-            )));
+        let rig_factor = if settings.align && settings.shared_alignment { settings.rig_factor } else { None };
+        let factors = [("factor", Some(settings.factor)), ("rig_factor", rig_factor)];
+        for (name, factor) in factors.into_iter().filter_map(|(n, f)| Some((n, f?))) {
+            if roles.training.contains(&v) && (view.camera.width < factor || view.camera.height < factor) {
+                return Err(Error(format!(
+                    "camera {}: its {}x{} image is smaller than the working resolution's {name} {factor}",
+                    view.name, view.camera.width, view.camera.height
+                )));
+            }
         }
     }
     Ok(())

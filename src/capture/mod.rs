@@ -111,7 +111,9 @@ impl Capture {
     pub fn grid_box(&self) -> crate::Result<(Vec3, Vec3)> {
         self.smoke_box.ok_or_else(|| {
             crate::Error(
-                "the calibration gives no smoke box (voxel_matrix, voxel_scale): give it (dualphoton fit --box)".into(),
+                "the calibration gives no smoke box (an info.json's voxel_matrix and voxel_scale; a transforms.json \
+                 has none)"
+                    .into(),
             )
         })
     }
@@ -122,5 +124,23 @@ impl Capture {
             let names: Vec<&str> = self.views.iter().map(|v| v.name.as_str()).collect();
             crate::Error(format!("the capture has no camera '{name}' (it has: {})", names.join(", ")))
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_is_six_finite_numbers_lower_corner_first() {
+        let (lo, hi) = box_of(&[-1.0, 0.0, 2.0, 1.0, 0.5, 3.0]).unwrap();
+        assert_eq!((lo, hi), (Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.5, 3.0)));
+        for bad in
+            [&[0.0, 0.0, 0.0, 1.0, 1.0][..], &[0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0], &[1.0, 0.0, 0.0, 0.0, 1.0, 1.0]]
+        {
+            assert!(box_of(bad).is_err(), "{bad:?}");
+        }
+        assert!(box_of(&[0.0, 0.0, 0.0, 1.0, f64::NAN, 1.0]).is_err());
+        assert!(box_of(&[0.0, 0.0, f64::NEG_INFINITY, 1.0, 1.0, 1.0]).is_err());
     }
 }

@@ -80,8 +80,8 @@ pub struct RenderSettings {
 #[serde(rename_all = "lowercase")]
 pub enum Shadows {
     /// `grid` where the densest voxel's optical depth over one light-depth
-    /// node spacing is small enough for the interpolation bias to be small
-    /// (`GRID_MAX_DEPTH`), else `marched`.
+    /// node spacing is at most 1 (`GRID_MAX_DEPTH`: the interpolation bias
+    /// is then small), else `marched`.
     #[default]
     Auto,
     /// Per light, the optical depth at the nodes of a grid, marched once per
