@@ -151,10 +151,10 @@ pub struct FitSettings {
     /// multiple scattering and emission-absorption (0.5-0.6 dB on the thin
     /// frame 5) and 0.4 dB for single scattering.
     pub shared_alignment: bool,
-    /// With `shared_alignment`, how many calibration frames the training
-    /// cameras are aligned on ([`super::rig::calibration_frames`]), at least
-    /// 1. On the settings study's frames 5 instead of 3 gained 0.03 dB on
-    /// the scoring camera (multiple scattering) at 1.6 times the rig's time.
+    /// With `shared_alignment`, how many calibration frames (at least one)
+    /// the training cameras are aligned on ([`super::rig::calibration_frames`]).
+    /// On the settings study's frames 5 instead of 3 gained 0.03 dB on the
+    /// scoring camera (multiple scattering) at 1.6 times the rig's time.
     pub rig_frames: usize,
     /// With `shared_alignment`, the working resolution of the calibration
     /// frames' fits, 1/`rig_factor` of the capture's; none: `factor`. On the
