@@ -86,7 +86,7 @@ pub struct FitResult {
 /// The rig `base` asks for: read from `path` if a run before this one
 /// fitted it, else fitted on the training cameras and written there.
 fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) -> Result<Option<Rig>> {
-    if path.exists() && base.align && base.shared_alignment {
+    if path.exists() && base.aligns_once() {
         let text = std::fs::read_to_string(path)?;
         return Ok(Some(serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?));
     }

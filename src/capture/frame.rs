@@ -92,15 +92,21 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
         return Err(Error(frames::NO_FFMPEG.into()));
     }
     let (lo, hi) = capture.grid_box()?;
+    // Every resolution a training camera's images are fitted at.
+    let mut factors = vec![("factor", settings.factor)];
+    if let (true, Some(rig_factor)) = (settings.aligns_once(), settings.rig_factor) {
+        factors.push(("rig_factor", rig_factor));
+    }
     for &v in used {
         let view = &capture.views[v];
         if !sees_box(&view.camera, &lo, &hi) {
             return Err(Error(format!("camera {}: the smoke box is not in its image", view.name)));
         }
-        let rig_factor = if settings.align && settings.shared_alignment { settings.rig_factor } else { None };
-        let factors = [("factor", Some(settings.factor)), ("rig_factor", rig_factor)];
-        for (name, factor) in factors.into_iter().filter_map(|(n, f)| Some((n, f?))) {
-            if roles.training.contains(&v) && (view.camera.width < factor || view.camera.height < factor) {
+        if !roles.training.contains(&v) {
+            continue;
+        }
+        for &(name, factor) in &factors {
+            if view.camera.width < factor || view.camera.height < factor {
                 return Err(Error(format!(
                     "camera {}: its {}x{} image is smaller than the working resolution's {name} {factor}",
                     view.name, view.camera.width, view.camera.height

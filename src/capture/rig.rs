@@ -62,7 +62,7 @@ impl Rig {
         settings: &FitSettings,
         progress: &mut dyn FnMut(usize, &Fit),
     ) -> Result<Option<Rig>> {
-        if settings.align && settings.shared_alignment {
+        if settings.aligns_once() {
             Rig::fit(capture, training, settings, progress).map(Some)
         } else {
             Ok(None)
