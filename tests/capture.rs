@@ -305,6 +305,39 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     // The training photographs' noise: constant videos have none beyond their codec's.
     assert!(fits.lines().next().unwrap().split(',').nth(5) == Some("train_noise"), "{fits}");
     assert!(rows.iter().all(|r| r[5].parse::<f64>().is_ok_and(|n| (0.0..0.01).contains(&n))), "{fits}");
+    // A rerun resumes only the run its folder recorded: the same settings
+    // fit nothing again, other settings are refused before any fit.
+    let again = run("0,2");
+    assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
+    assert_eq!(std::fs::read_to_string(out.join("fits.csv")).unwrap(), fits, "the same settings refit nothing");
+    let settings = dir.join("orders.json");
+    std::fs::write(&settings, r#"{"orders": 4}"#).unwrap();
+    let other = std::process::Command::new(exe)
+        .arg("--data")
+        .arg(&dir)
+        .args(["--frames", "0,2", "--models", "emission-absorption", "--fit-settings"])
+        .arg(&settings)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(!other.status.success() && err.contains("other fit setting orders") && err.lines().count() == 1, "{err}");
+    assert_eq!(std::fs::read_to_string(out.join("fits.csv")).unwrap(), fits, "a refused rerun writes no fit");
+    // A rig made on other calibration frames is not reused.
+    let rig_path = out.join("rig.json");
+    let rig = std::fs::read_to_string(&rig_path).unwrap();
+    std::fs::write(&rig_path, rig.replacen("\"frames\": [", "\"frames\": [7, ", 1)).unwrap();
+    std::fs::remove_file(out.join("fits.csv")).unwrap();
+    let moved = run("0,2");
+    let err = String::from_utf8_lossy(&moved.stderr);
+    assert!(!moved.status.success() && err.contains("aligns other cameras or frames"), "{err}");
+    // A folder holding fits without the settings they were made with is refused.
+    std::fs::remove_file(out.join("settings.json")).unwrap();
+    std::fs::write(&rig_path, rig).unwrap();
+    let unknown = run("0,2");
+    let err = String::from_utf8_lossy(&unknown.stderr);
+    assert!(!unknown.status.success() && err.contains("not the settings they were made with"), "{err}");
 }
 
 /// PINF's `voxel_matrix` of the box [-0.5, 0.5]^3 (with `voxel_scale` 1).

@@ -8,8 +8,9 @@
 //! held-out camera's direction used as it is); then every frame fitted under
 //! each image model and its held-out view scored.
 //!
-//! Writes `results/scalarflow_real/`: `baselines.csv`, `fits.csv` (appended
-//! frame by frame: a stopped run resumes), `summary.md`, `psnr_per_frame.svg`,
+//! Writes `results/scalarflow_real/`: `baselines.csv`, `settings.json` (the
+//! cameras and fit settings of every fit), `rig.json`, `fits.csv` (appended
+//! frame by frame: a stopped run with the same settings resumes), `summary.md`, `psnr_per_frame.svg`,
 //! `held_out_views.svg`, `density_slices.svg`, `manifest.json`.
 //! The capture is read from `--data` (never copied into the repository).
 
@@ -87,6 +88,9 @@ fn run(args: Args) -> Result<()> {
     frame::check(&capture, &roles, &args.frames, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
+    if !args.models.is_empty() {
+        models::RunSettings::of(&capture, &roles, &fit_settings, args.focal_lengths.as_deref())?.record(&args.out)?;
+    }
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
     let truth = frames::read(test, &args.frames)?;
