@@ -12,15 +12,17 @@ use crate::volume::Grid;
 /// not change when the density is scaled, so it leaves the scale to the
 /// images (a term in `A` alone would pull every density towards 0 and
 /// every light up without bound, where nothing in the images resists).
-pub fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
+/// `axes` weighs each axis's pairs (z, y, x, as the grid's shape).
+pub fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64, axes: [f64; 3]) -> (f64, Vec<f64>) {
     let mut grad = vec![0.0; density.len()];
     if weight == 0.0 {
         return (0.0, grad);
     }
     let [nz, ny, nx] = density.shape;
     let h = density.voxel_size();
-    let axes = [(h.z, nz, 0usize), (h.y, ny, 1), (h.x, nx, 2)];
-    let pairs: usize = axes.iter().map(|&(_, n, _)| density.len() / n * (n - 1)).sum();
+    let pairs: usize = [nz, ny, nx].iter().map(|&n| density.len() / n * (n - 1)).sum();
+    let axes =
+        [(h.z, nz, 0usize), (h.y, ny, 1), (h.x, nx, 2)].map(|(step, n, axis)| (step * axes[axis].sqrt(), n, axis));
     let scale = 1.0 / pairs.max(1) as f64;
     let mut sum = 0.0;
     for k in 0..nz {
@@ -117,7 +119,21 @@ mod tests {
 
     #[test]
     fn the_smoothness_gradient_matches_finite_differences() {
-        check(smoothness);
+        check(|d, h, w| smoothness(d, h, w, [1.0; 3]));
+        check(|d, h, w| smoothness(d, h, w, [2.0, 0.5, 3.0]));
+    }
+
+    #[test]
+    fn smoothness_weighs_each_axis_as_told() {
+        let (grid, hull) = small();
+        // A density that varies along y alone costs nothing where y's pairs weigh nothing.
+        let layered = Grid::new(grid.lo, grid.hi, grid.shape, (0..60).map(|i| ((i / 4) % 5) as f64 + 1.0).collect());
+        assert!(smoothness(&layered, &hull, 0.7, [1.0, 1.0, 1.0]).0 > 0.0);
+        assert_eq!(smoothness(&layered, &hull, 0.7, [1.0, 0.0, 1.0]).0, 0.0);
+        // Weights scale each axis's share: twice every weight, twice the term.
+        let (one, _) = smoothness(&grid, &hull, 0.7, [1.0, 2.0, 3.0]);
+        let (two, _) = smoothness(&grid, &hull, 0.7, [2.0, 4.0, 6.0]);
+        assert!((two - 2.0 * one).abs() < 1e-12 * one, "{one} {two}");
     }
 
     #[test]
