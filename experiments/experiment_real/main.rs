@@ -16,6 +16,7 @@
 
 mod figures;
 mod models;
+mod resume;
 
 use clap::Parser;
 use dualphoton::capture::fit::{FitSettings, ImageModel};
@@ -89,7 +90,7 @@ fn run(args: Args) -> Result<()> {
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
     if !args.models.is_empty() {
-        models::RunSettings::of(&capture, &roles, &fit_settings, args.focal_lengths.as_deref())?.record(&args.out)?;
+        resume::RunSettings::of(&capture, &roles, &fit_settings, args.focal_lengths.as_deref())?.record(&args.out)?;
     }
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
