@@ -315,15 +315,25 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     let other = std::process::Command::new(exe)
         .arg("--data")
         .arg(&dir)
-        .args(["--frames", "0,2", "--models", "emission-absorption", "--fit-settings"])
+        .args(["--frames", "0,1,2", "--models", "emission-absorption", "--fit-settings"])
         .arg(&settings)
         .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&other.stderr);
-    assert!(!other.status.success() && err.contains("other fit setting orders") && err.lines().count() == 1, "{err}");
+    assert!(
+        !other.status.success() && err.contains("other fit setting orders (3 in its settings.json, 4 here)"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
     assert_eq!(std::fs::read_to_string(out.join("fits.csv")).unwrap(), fits, "a refused rerun writes no fit");
+    // Another frame with the same settings is fitted and added to the rows before it.
+    let more = run("0,1,2");
+    assert!(more.status.success(), "{}", String::from_utf8_lossy(&more.stderr));
+    let fits_more = std::fs::read_to_string(out.join("fits.csv")).unwrap();
+    assert!(fits_more.starts_with(&fits) && fits_more.lines().count() == fits.lines().count() + 1, "{fits_more}");
+    assert!(fits_more.lines().last().unwrap().starts_with("1,"), "{fits_more}");
     // A rig made on other calibration frames is not reused.
     let rig_path = out.join("rig.json");
     let rig = std::fs::read_to_string(&rig_path).unwrap();

@@ -89,9 +89,7 @@ fn run(args: Args) -> Result<()> {
     frame::check(&capture, &roles, &args.frames, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
-    if !args.models.is_empty() {
-        resume::RunSettings::of(&capture, &roles, &fit_settings, args.focal_lengths.as_deref())?.record(&args.out)?;
-    }
+    resume::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
     let truth = frames::read(test, &args.frames)?;

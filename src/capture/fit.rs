@@ -99,9 +99,9 @@ pub struct FitSettings {
     /// Factor on the smoothness term's pairs across the vertical (the grid
     /// axes other than the one nearest the training cameras' mean up
     /// direction). Cameras on one level arc each see every height of the
-    /// smoke, but leave it open across. On the settings study's frames 3
-    /// and 10 lost 0.17 and 0.63 dB on the scoring camera and 0.3 gained
-    /// 0.01 dB: 1, as along the vertical.
+    /// smoke, but leave it open across. On the settings study's frames the
+    /// factors 3 and 10 lost 0.17 and 0.63 dB on the scoring camera and 0.3
+    /// gained 0.01 dB: 1, as along the vertical.
     pub horizontal_smoothness: f64,
     /// Weight of the sparsity term ([`sparsity`]) against the images' mean
     /// squared error. Off: on the settings study's frames 0.0001 changed
