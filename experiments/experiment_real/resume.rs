@@ -8,6 +8,7 @@ use dualphoton::capture::frame::Roles;
 use dualphoton::capture::rig::{calibration_frames, Rig};
 use dualphoton::capture::Capture;
 use dualphoton::error::{Error, Result};
+use dualphoton::io::manifest::write_json;
 use dualphoton::math::Vec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -96,8 +97,7 @@ impl RunSettings {
         if ["fits.csv", "rig.json"].iter().any(|f| dir.join(f).exists()) {
             return refuse("holds fits but not the settings they were made with (settings.json)".into());
         }
-        std::fs::write(&path, serde_json::to_string_pretty(self).map_err(json)?)?;
-        Ok(())
+        write_json(&path, &mine)
     }
 }
 
@@ -159,7 +159,7 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
         eprintln!("rig: frame {frame} fitted in {:.0} s", fit.seconds)
     })?;
     if let Some(rig) = &rig {
-        std::fs::write(path, serde_json::to_string_pretty(rig).map_err(|e| Error(e.to_string()))?)?;
+        write_json(path, &serde_json::to_value(rig).map_err(|e| Error(e.to_string()))?)?;
     }
     Ok(rig)
 }
