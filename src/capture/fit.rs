@@ -90,8 +90,14 @@ pub struct FitSettings {
     /// settings study's frames 80 at the finest level scored better than 40
     /// and 160 (which fits the training cameras closer and the unseen one worse).
     pub updates: Vec<usize>,
-    /// Adam step of the density, in units of the start's density.
+    /// Adam step of the density, in units of the start's density (with
+    /// `log_density`, of its logarithm: a fraction of each voxel's own).
     pub lr: f64,
+    /// Take the Adam steps on the density's logarithm instead of the
+    /// density: each voxel then moves by a fraction of itself, as a
+    /// multiplicative tomography update (MART) does, and thin voxels change
+    /// slowly where thick ones change fast.
+    pub log_density: bool,
     /// Weight of the smoothness term: the mean over neighbouring voxel
     /// pairs of the squared difference of their optical depth across one
     /// voxel, against the images' mean squared error.
@@ -228,6 +234,7 @@ impl Default for FitSettings {
             resolution: 64,
             updates: vec![40, 40, 80],
             lr: 0.05,
+            log_density: false,
             smoothness: 0.001,
             horizontal_smoothness: 1.0,
             sparsity: 0.0,
@@ -454,8 +461,15 @@ pub fn fit(
             upsample(&scene.density, &grid, &hull)
         };
         let support = Grid::new(lo, hi, shape, hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect());
-        let step = settings.lr * mean_inside(&density, &hull).max(f64::MIN_POSITIVE);
-        let mut adam = Adam::new(density.len(), step);
+        let mean = mean_inside(&density, &hull).max(f64::MIN_POSITIVE);
+        let mut adam = Adam::new(density.len(), if settings.log_density { settings.lr } else { settings.lr * mean });
+        // With `log_density`, what Adam moves: the density's logarithm inside
+        // the hull (a voxel at 0 starts from a thousandth of the mean).
+        let mut log_density: Vec<f64> = if settings.log_density {
+            density.data.iter().zip(&hull).map(|(&d, &h)| if h { d.max(1e-3 * mean).ln() } else { 0.0 }).collect()
+        } else {
+            Vec::new()
+        };
         for update in 0..updates {
             scene.density = density.clone();
             if update % settings.refit_every == 0 {
@@ -486,8 +500,16 @@ pub fn fit(
             if grad.iter().any(|g| !g.is_finite()) {
                 return Err(Error(format!("level {level}, update {update}: the gradient is not finite")));
             }
-            adam.step(&mut density.data, &grad);
-            density.data.iter_mut().for_each(|d| *d = d.max(0.0));
+            if settings.log_density {
+                let grad: Vec<f64> = grad.iter().zip(&density.data).map(|(g, d)| g * d).collect();
+                adam.step(&mut log_density, &grad);
+                for ((d, &u), &h) in density.data.iter_mut().zip(&log_density).zip(&hull) {
+                    *d = if h { u.exp() } else { 0.0 };
+                }
+            } else {
+                adam.step(&mut density.data, &grad);
+                density.data.iter_mut().for_each(|d| *d = d.max(0.0));
+            }
             let row = FitRow {
                 level,
                 update,
@@ -747,6 +769,8 @@ mod tests {
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
                 "gains" => settings.gains,
+                "log_density" => settings.log_density,
+                n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],
                 "no_ambient" => !settings.ambient,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
                 n if n.starts_with("factor_") && !n.contains("res") => {
