@@ -96,7 +96,9 @@ pub struct FitSettings {
     /// Take the Adam steps on the density's logarithm instead of the
     /// density: each voxel then moves by a fraction of itself, as a
     /// multiplicative tomography update (MART) does, and thin voxels change
-    /// slowly where thick ones change fast.
+    /// slowly where thick ones change fast. On by default: on the settings
+    /// study's frames it gained 0.29 dB on the scoring camera for multiple
+    /// scattering (lr 0.05; 0.1 scored 0.01 dB less).
     pub log_density: bool,
     /// Weight of the smoothness term: the mean over neighbouring voxel
     /// pairs of the squared difference of their optical depth across one
@@ -234,7 +236,7 @@ impl Default for FitSettings {
             resolution: 64,
             updates: vec![40, 40, 80],
             lr: 0.05,
-            log_density: false,
+            log_density: true,
             smoothness: 0.001,
             horizontal_smoothness: 1.0,
             sparsity: 0.0,
@@ -743,6 +745,56 @@ mod tests {
         assert_eq!(up_axis(&z_up), 0);
     }
 
+    /// Both updates fit three views of a bright disc (a ball); the
+    /// multiplicative one takes other steps, keeps every voxel it touches
+    /// positive and finite, and lowers the images' error as the additive one does.
+    #[test]
+    fn the_log_density_update_fits_a_ball() {
+        let camera = |x: f64, z: f64| Camera {
+            position: Vec3::new(x, 0.3, z),
+            look_at: Vec3::zeros(),
+            up: Vec3::y(),
+            lens: crate::scene::Lens::FovY(40.0),
+            width: 24,
+            height: 24,
+        };
+        let cameras = [camera(2.5, 0.0), camera(0.0, 2.5), camera(-1.8, 1.8)];
+        let disc = Image {
+            width: 24,
+            height: 24,
+            data: (0..24 * 24)
+                .map(|i| {
+                    let (x, y) = ((i % 24) as f64 - 11.5, (i / 24) as f64 - 11.5);
+                    if x * x + y * y < 25.0 { 0.3 } else { 0.0 }
+                })
+                .collect(),
+        };
+        let images = vec![disc; 3];
+        let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+        let run = |log_density: bool| {
+            let settings = FitSettings {
+                model: ImageModel::EmissionAbsorption,
+                factor: 1,
+                resolution: 8,
+                updates: vec![10, 20],
+                align: false,
+                gains: false,
+                threshold: 0.0,
+                log_density,
+                ..FitSettings::default()
+            };
+            fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap()
+        };
+        let (additive, multiplicative) = (run(false), run(true));
+        for fit in [&additive, &multiplicative] {
+            let first = fit.log[0].image_mse;
+            let last = fit.log.last().unwrap().image_mse;
+            assert!(last < first / 2.0, "the images' error fell from {first} to only {last}");
+            assert!(fit.scene.density.data.iter().all(|d| d.is_finite() && *d >= 0.0));
+        }
+        assert_ne!(additive.scene.density.data, multiplicative.scene.density.data, "log_density changed no step");
+    }
+
     #[test]
     fn the_shipped_fit_settings_are_valid_and_change_what_their_names_say() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/studies/real_dev");
@@ -770,6 +822,7 @@ mod tests {
                 n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
                 "gains" => settings.gains,
                 "log_density" => settings.log_density,
+                "additive" => !settings.log_density,
                 n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],
                 "no_ambient" => !settings.ambient,
                 "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
