@@ -6,7 +6,7 @@
 //! The image is linear in every light's intensity and in the emission, so
 //! for a given density they follow exactly from a non-negative least-squares
 //! fit to one render per light and one of the emission alone. The density
-//! follows the images' reverse-mode gradient (Adam, projected to >= 0,
+//! follows the images' reverse-mode gradient (Adam on its logarithm,
 //! inside the visual hull of the real silhouettes) plus the priors of
 //! [`super::priors`], coarse to fine. The camera response is a power law shared by every
 //! camera ([`FitSettings::gamma`]) and a gain per training camera; the
