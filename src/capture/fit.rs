@@ -687,7 +687,8 @@ fn over_hull(grid: &Grid<f64>, hull: &[bool], value: impl Fn(Vec3) -> f64) -> Ve
 /// `hull`, a voxel at 0 raised to a thousandth of `mean` first (`density`
 /// is set to what the logarithm gives back).
 fn to_log(density: &mut Grid<f64>, hull: &[bool], mean: f64) -> Vec<f64> {
-    let log_values: Vec<f64> = density.data.iter().zip(hull).map(|(&d, &h)| if h { d.max(1e-3 * mean).ln() } else { 0.0 }).collect();
+    let log_values: Vec<f64> =
+        density.data.iter().zip(hull).map(|(&d, &h)| if h { d.max(1e-3 * mean).ln() } else { 0.0 }).collect();
     from_log(density, &log_values, hull);
     log_values
 }
@@ -782,7 +783,11 @@ mod tests {
             data: (0..SIZE * SIZE)
                 .map(|i| {
                     let (x, y) = ((i % SIZE) as f64 - centre, (i / SIZE) as f64 - centre);
-                    if x * x + y * y < 16.0 * 16.0 { 0.3 } else { 0.0 }
+                    if x * x + y * y < 16.0 * 16.0 {
+                        0.3
+                    } else {
+                        0.0
+                    }
                 })
                 .collect(),
         };
