@@ -77,9 +77,7 @@ impl RunSettings {
     /// cannot be told.
     pub fn record(&self, dir: &Path, fits: bool) -> Result<()> {
         let path = dir.join("settings.json");
-        let refuse = |why: String| {
-            Err(Error(format!("{}: {why}; give another --out or delete the folder to start afresh", dir.display())))
-        };
+        let refuse = |why: String| Err(start_afresh(dir, &why));
         let json = |e: serde_json::Error| Error(format!("{}: {e}", path.display()));
         // Compared as written and read back, so that a value's last bit lost to the text never differs.
         let mine: serde_json::Value =
@@ -99,6 +97,12 @@ impl RunSettings {
         }
         write_json(&path, &mine)
     }
+}
+
+/// The one-line refusal of a folder (or a file in it) that holds another
+/// run: why, and how to start afresh.
+fn start_afresh(what: &Path, why: &str) -> Error {
+    Error(format!("{}: {why}; give another --out or delete the folder to start afresh", what.display()))
 }
 
 /// What differs between two records, by name: the fit settings' fields one
@@ -146,12 +150,9 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
         let names: Vec<&str> = roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect();
         let frames = calibration_frames(capture.frame_count(), base.rig_frames);
         if rig.cameras.iter().map(|c| c.name.as_str()).ne(names.iter().copied()) || rig.frames != frames {
-            return Err(Error(format!(
-                "{}: aligns other cameras or frames than this run's ({} on frames {frames:?}); give another --out or \
-                 delete the folder to start afresh",
-                path.display(),
-                names.join(", ")
-            )));
+            let why =
+                format!("aligns other cameras or frames than this run's ({} on frames {frames:?})", names.join(", "));
+            return Err(start_afresh(path, &why));
         }
         return Ok(Some(rig));
     }
