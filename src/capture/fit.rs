@@ -27,8 +27,10 @@ use crate::grad::loss::mse;
 use crate::grad::reverse::{reverse_gradient, Subset};
 use crate::image::Image;
 use crate::math::Vec3;
+use crate::model::{Decoder, Model};
 use crate::optim::Adam;
 use crate::recon::hull::carve;
+use crate::recon::train::TrainSettings;
 use crate::render::frozen::Frozen;
 use crate::render::render_photon;
 use crate::scene::{Camera, Medium, RenderSettings, Scene};
@@ -212,6 +214,14 @@ pub struct FitSettings {
     /// which scored best on the settings study's frames (0.8, 1.5 and 2.2
     /// lost 0.2-2.9 dB on the scoring camera, every model).
     pub gamma: f64,
+    /// Adam updates of the paper's density model before the per-voxel
+    /// fit: a 64-d latent and a small decoder, fitted from scratch, whose
+    /// output is the density on a cube of `resolution` voxels a side around
+    /// the smoke box ([`crate::model::Decoder::paper_small`]). The per-voxel
+    /// fit then runs at the finest level only, from the decoder's density,
+    /// as the paper's refinement does. 0: no decoder; the per-voxel fit runs
+    /// coarse to fine from an even start.
+    pub decoder: usize,
     /// Seed of every render.
     pub seed: u64,
 }
@@ -263,6 +273,7 @@ impl Default for FitSettings {
             gains: true,
             ambient: true,
             gamma: 1.0,
+            decoder: 0,
             seed: 0,
         }
     }
@@ -336,6 +347,9 @@ impl FitSettings {
         if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
             return bad("g must be in (-1, 1) and albedo in [0, 1]");
         }
+        if self.decoder > 0 && crate::model::Decoder::paper_small(self.resolution).is_err() {
+            return bad("with decoder, resolution must be 8, 16, 32, 64, 128, ... (the decoder's cube)");
+        }
         Ok(())
     }
 }
@@ -343,9 +357,10 @@ impl FitSettings {
 /// One row of a fit's log.
 #[derive(Clone, Debug, Serialize)]
 pub struct FitRow {
-    /// Level (0 = coarsest).
+    /// Stage: the levels coarsest first (0), after the decoder's stage
+    /// when there is one (then 0 is the decoder's, 1 the finest level).
     pub level: usize,
-    /// Update within the level.
+    /// Update within the stage.
     pub update: usize,
     /// The images' mean squared error (code value / full scale, squared).
     pub image_mse: f64,
@@ -450,39 +465,56 @@ pub fn fit(
     let mut damping = 1e-3;
     // Emission-absorption has no lights: its emission is its image.
     let ambient = settings.ambient || !settings.model.lit();
-    for (level, &updates) in settings.updates.iter().enumerate() {
-        let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
-        let grid = Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()]);
+    // The stages: every level, coarsest first; or the decoder's, then the finest level.
+    let stages: Vec<(Option<usize>, usize)> = if settings.decoder > 0 {
+        vec![(None, settings.decoder), (Some(levels - 1), settings.updates[levels - 1])]
+    } else {
+        settings.updates.iter().enumerate().map(|(level, &updates)| (Some(level), updates)).collect()
+    };
+    for (stage, &(level, updates)) in stages.iter().enumerate() {
+        let grid = match level {
+            Some(level) => {
+                let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
+                Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()])
+            }
+            None => cube_around(&lo, &hi, settings.resolution),
+        };
         let aligned = fixed.is_some() || offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
         let margin = if aligned { settings.aligned_margin } else { SILHOUETTE_MARGIN_PX };
         let silhouettes: Vec<Vec<bool>> = codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
-        let hull = carve(&grid, &scene.cameras, &silhouettes);
+        let in_box = |centre: Vec3| (0..3).all(|a| centre[a] >= lo[a] && centre[a] <= hi[a]);
+        let hull: Vec<bool> = carve(&grid, &scene.cameras, &silhouettes)
+            .iter()
+            .zip(over_hull(&grid, &vec![true; grid.len()], |c| if in_box(c) { 1.0 } else { 0.0 }))
+            .map(|(&h, inside)| h && inside > 0.0)
+            .collect();
         if !hull.iter().any(|&h| h) {
             return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
         }
-        let mut density = if level == 0 {
-            let shape = start_shape(&grid, &hull, &scene.cameras, &photographs, settings.start_shape);
-            start_density(&grid, &shape, settings.start_depth)
-        } else {
-            upsample(&scene.density, &grid, &hull)
+        let (mut density, mut params) = match (stage, level) {
+            (0, None) => decoder_start(&grid, &hull, settings)?,
+            (_, None) => unreachable!("the decoder's stage is the first"),
+            (0, Some(_)) => {
+                let shape = start_shape(&grid, &hull, &scene.cameras, &photographs, settings.start_shape);
+                voxel_params(start_density(&grid, &shape, settings.start_depth), &hull, settings)
+            }
+            (_, Some(_)) => voxel_params(upsample(&scene.density, &grid, &hull), &hull, settings),
         };
-        let support = Grid::new(lo, hi, shape, hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect());
-        let mean = mean_inside(&density, &hull).max(f64::MIN_POSITIVE);
-        let mut adam = Adam::new(density.len(), if settings.log_density { settings.lr } else { settings.lr * mean });
-        let mut log_values = if settings.log_density { to_log(&mut density, &hull, mean) } else { Vec::new() };
+        let support =
+            Grid::new(grid.lo, grid.hi, grid.shape, hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect());
         for update in 0..updates {
             scene.density = density.clone();
             if update % settings.refit_every == 0 {
-                if let (true, true, None, Some(rendered)) = (settings.align, level > 0, fixed, &last) {
+                if let (true, true, None, Some(rendered)) = (settings.align, stage > 0, fixed, &last) {
                     align_cameras(&mut scene.cameras, &mut offsets, &mut zooms, settings.zoom, rendered, &images);
                 }
                 let targets = censored(&images, last.as_deref(), threshold, &gains);
                 let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
-                if settings.gains && level > 0 {
+                if settings.gains && stage > 0 {
                     fit_gains(&mut gains, &weights_of(&scene), &basis, &targets);
                     images = photographs.iter().zip(&gains).map(|(p, g)| p.map(|v| v / g)).collect();
                 }
-                if settings.lights > 0 && level > 0 && settings.model.lit() {
+                if settings.lights > 0 && stage > 0 && settings.model.lit() {
                     place_lights(&mut scene, &targets, &basis, settings.lights, ambient, &mut damping, &mut renders);
                 }
             }
@@ -498,19 +530,11 @@ pub fn fit(
                 .map(|v| if hull[v] { reverse.grad[v] + smooth_grad[v] + sparse_grad[v] } else { 0.0 })
                 .collect();
             if grad.iter().any(|g| !g.is_finite()) {
-                return Err(Error(format!("level {level}, update {update}: the gradient is not finite")));
+                return Err(Error(format!("stage {stage}, update {update}: the gradient is not finite")));
             }
-            if settings.log_density {
-                // d L / d ln(rho) = rho d L / d rho.
-                let log_grad: Vec<f64> = grad.iter().zip(&density.data).map(|(g, d)| g * d).collect();
-                adam.step(&mut log_values, &log_grad);
-                from_log(&mut density, &log_values, &hull);
-            } else {
-                adam.step(&mut density.data, &grad);
-                density.data.iter_mut().for_each(|d| *d = d.max(0.0));
-            }
+            params.step(&mut density, &hull, &grad);
             let row = FitRow {
-                level,
+                level: stage,
                 update,
                 image_mse: reverse.loss,
                 smoothness: smooth,
@@ -618,6 +642,80 @@ pub fn training_rmse(fit: &Fit, images: &[Image]) -> f64 {
 
 /// The grid's shape (Z, Y, X) over `lo..hi` with `longest` voxels along the
 /// longest edge and cubic voxels as near as whole numbers allow.
+/// What a stage's Adam steps move.
+enum Params {
+    /// The density itself, projected to >= 0.
+    Density(Adam),
+    /// The density's logarithm inside the hull.
+    Log(Adam, Vec<f64>),
+    /// The paper's model: the density is `scale` times the decoder's output.
+    Decoder { model: Model, scale: f64, latent: Adam, weights: Adam },
+}
+
+impl Params {
+    /// One Adam step along `grad` (d loss / d density), `density` set to where it leads.
+    fn step(&mut self, density: &mut Grid<f64>, hull: &[bool], grad: &[f64]) {
+        match self {
+            Params::Density(adam) => {
+                adam.step(&mut density.data, grad);
+                density.data.iter_mut().for_each(|d| *d = d.max(0.0));
+            }
+            Params::Log(adam, log_values) => {
+                // d L / d ln(rho) = rho d L / d rho.
+                let log_grad: Vec<f64> = grad.iter().zip(&density.data).map(|(g, d)| g * d).collect();
+                adam.step(log_values, &log_grad);
+                from_log(density, log_values, hull);
+            }
+            Params::Decoder { model, scale, latent, weights } => {
+                let grad_out: Vec<f64> = grad.iter().map(|g| g * *scale).collect();
+                let (grad_z, grad_w) = model.decoder.backward(&model.z, &model.w, &model.mask, &grad_out);
+                latent.step(&mut model.z, &grad_z);
+                weights.step(&mut model.w, &grad_w);
+                let out = model.decoder.forward(&model.z, &model.w, &model.mask);
+                density.data = out.iter().map(|v| v * *scale).collect();
+            }
+        }
+    }
+}
+
+/// A per-voxel stage from `density`: its steps on the logarithm or on the density.
+fn voxel_params(mut density: Grid<f64>, hull: &[bool], settings: &FitSettings) -> (Grid<f64>, Params) {
+    let mean = mean_inside(&density, hull).max(f64::MIN_POSITIVE);
+    let params = if settings.log_density {
+        let log_values = to_log(&mut density, hull, mean);
+        Params::Log(Adam::new(density.len(), settings.lr), log_values)
+    } else {
+        Params::Density(Adam::new(density.len(), settings.lr * mean))
+    };
+    (density, params)
+}
+
+/// The decoder's stage: the paper's model from scratch (seeded by the fit's
+/// seed) on `grid`, its output scaled to the start's optical depth, with the
+/// paper's Adam steps for latent and weights.
+fn decoder_start(grid: &Grid<f64>, hull: &[bool], settings: &FitSettings) -> Result<(Grid<f64>, Params)> {
+    let decoder = Decoder::paper_small(settings.resolution)?;
+    let model =
+        Model { z: decoder.init_latent(settings.seed), w: decoder.init(settings.seed), mask: hull.to_vec(), decoder };
+    let out = model.decoder.forward(&model.z, &model.w, &model.mask);
+    if !out.iter().any(|&v| v > 0.0) {
+        return Err(Error("the decoder's first output is 0 everywhere in the hull: try another seed".into()));
+    }
+    let scale = depth_scale(grid, &out, settings.start_depth);
+    let density = Grid::new(grid.lo, grid.hi, grid.shape, out.iter().map(|v| v * scale).collect());
+    let paper = TrainSettings::default();
+    let (latent, weights) = (Adam::new(model.z.len(), paper.lr_latent), Adam::new(model.w.len(), paper.lr_weights));
+    Ok((density, Params::Decoder { model, scale, latent, weights }))
+}
+
+/// A cube of `n` voxels a side, centred on the box `lo`..`hi`, its edge the box's longest.
+fn cube_around(lo: &Vec3, hi: &Vec3, n: usize) -> Grid<f64> {
+    let half = (hi - lo).max() / 2.0;
+    let centre = (lo + hi) / 2.0;
+    let corner = Vec3::new(half, half, half);
+    Grid::new(centre - corner, centre + corner, [n, n, n], vec![0.0; n * n * n])
+}
+
 fn grid_shape(lo: &Vec3, hi: &Vec3, longest: usize) -> [usize; 3] {
     let e = hi - lo;
     let max = e.x.max(e.y).max(e.z);
@@ -652,13 +750,18 @@ fn start_shape(grid: &Grid<f64>, hull: &[bool], cameras: &[Camera], photos: &[Im
 /// positive is an optical depth of `depth` across their mean chord (their
 /// volume over their largest cross-section, roughly).
 fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
+    let rho = depth_scale(grid, shape, depth);
+    Grid::new(grid.lo, grid.hi, grid.shape, shape.iter().map(|&s| s * rho).collect())
+}
+
+/// The factor on `shape` that makes [`start_density`] of it.
+fn depth_scale(grid: &Grid<f64>, shape: &[f64], depth: f64) -> f64 {
     let inside = shape.iter().filter(|&&s| s > 0.0).count().max(1) as f64;
     let mean = shape.iter().sum::<f64>() / inside;
     let v = grid.voxel_size();
     let voxel = (v.x * v.y * v.z).cbrt();
     let chord = inside.cbrt() * voxel;
-    let rho = depth / chord / mean;
-    Grid::new(grid.lo, grid.hi, grid.shape, shape.iter().map(|&s| s * rho).collect())
+    depth / chord / mean
 }
 
 /// `coarse` sampled at `grid`'s voxel centres (trilinear), 0 outside `hull`.
@@ -825,6 +928,61 @@ mod tests {
     }
 
     #[test]
+    fn the_decoder_stage_fits_a_ball_before_the_finest_level() {
+        const SIZE: usize = 32;
+        let camera = |x: f64, z: f64| Camera {
+            position: Vec3::new(x, 0.3, z),
+            look_at: Vec3::zeros(),
+            up: Vec3::y(),
+            lens: crate::scene::Lens::FovY(40.0),
+            width: SIZE,
+            height: SIZE,
+        };
+        let cameras = [camera(2.5, 0.0), camera(0.0, 2.5), camera(-1.8, 1.8)];
+        let centre = (SIZE as f64 - 1.0) / 2.0;
+        let disc: Vec<f64> = (0..SIZE * SIZE)
+            .map(|i| {
+                let (x, y) = ((i % SIZE) as f64 - centre, (i / SIZE) as f64 - centre);
+                if x * x + y * y < 8.0 * 8.0 {
+                    0.3
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let images = vec![Image { width: SIZE, height: SIZE, data: disc }; 3];
+        // A box longer along y: the decoder's cube holds voxels outside it.
+        let smoke_box = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
+        let settings = FitSettings {
+            model: ImageModel::EmissionAbsorption,
+            factor: 2,
+            resolution: 8,
+            updates: vec![10, 15],
+            decoder: 30,
+            align: false,
+            gains: false,
+            threshold: 0.0,
+            ..FitSettings::default()
+        };
+        let done = fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap();
+        let stage = |s: usize| done.log.iter().filter(|r| r.level == s).map(|r| r.image_mse).collect::<Vec<f64>>();
+        let (decoder, finest) = (stage(0), stage(1));
+        // The decoder's updates, then the finest level's only.
+        assert_eq!((decoder.len(), finest.len(), done.log.len()), (30, 15, 45));
+        assert!(
+            decoder[29] < decoder[0] / 2.0,
+            "the decoder's stage lowered the error from {} to only {}",
+            decoder[0],
+            decoder[29]
+        );
+        assert!(finest[14] < decoder[29], "the finest level did not go on from the decoder's fit");
+        assert_eq!(done.scene.density.shape, grid_shape(&smoke_box.0, &smoke_box.1, 8));
+        assert!(done.scene.density.data.iter().all(|d| d.is_finite() && *d >= 0.0));
+        let cube = FitSettings { resolution: 12, ..settings };
+        assert!(cube.validate().unwrap_err().0.contains("decoder"), "a decoder needs a cube of 4 * 2^n voxels");
+    }
+
+    #[test]
     fn the_shipped_fit_settings_are_valid_and_change_what_their_names_say() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/studies/real_dev");
         let mut names = Vec::new();
@@ -874,6 +1032,7 @@ mod tests {
                 n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
+                n if n.starts_with("decoder_") => settings.decoder.to_string() == n["decoder_".len()..],
                 _ => false,
             };
             let changed = name.split('+').all(says);
