@@ -482,12 +482,9 @@ pub fn fit(
         let aligned = fixed.is_some() || offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
         let margin = if aligned { settings.aligned_margin } else { SILHOUETTE_MARGIN_PX };
         let silhouettes: Vec<Vec<bool>> = codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
-        let in_box = |centre: Vec3| (0..3).all(|a| centre[a] >= lo[a] && centre[a] <= hi[a]);
-        let hull: Vec<bool> = carve(&grid, &scene.cameras, &silhouettes)
-            .iter()
-            .zip(over_hull(&grid, &vec![true; grid.len()], |c| if in_box(c) { 1.0 } else { 0.0 }))
-            .map(|(&h, inside)| h && inside > 0.0)
-            .collect();
+        let inside = in_box(&grid, &lo, &hi);
+        let hull: Vec<bool> =
+            carve(&grid, &scene.cameras, &silhouettes).iter().zip(&inside).map(|(&h, &i)| h && i).collect();
         if !hull.iter().any(|&h| h) {
             return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
         }
@@ -714,6 +711,14 @@ fn cube_around(lo: &Vec3, hi: &Vec3, n: usize) -> Grid<f64> {
     let centre = (lo + hi) / 2.0;
     let corner = Vec3::new(half, half, half);
     Grid::new(centre - corner, centre + corner, [n, n, n], vec![0.0; n * n * n])
+}
+
+/// Whether each voxel's centre lies in the box `lo`..`hi`: every voxel of
+/// a level's grid; the decoder's cube reaches past the box's shorter edges.
+fn in_box(grid: &Grid<f64>, lo: &Vec3, hi: &Vec3) -> Vec<bool> {
+    let all = vec![true; grid.len()];
+    let inside = over_hull(grid, &all, |c| if (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a]) { 1.0 } else { 0.0 });
+    inside.iter().map(|&v| v > 0.0).collect()
 }
 
 fn grid_shape(lo: &Vec3, hi: &Vec3, longest: usize) -> [usize; 3] {

@@ -86,6 +86,9 @@ impl Rig {
             align: true,
             shared_alignment: false,
             factor: settings.rig_factor.unwrap_or(settings.factor),
+            // The cameras' alignment, coarse to fine per voxel, whatever the
+            // frames' own fits start from: every setting of them sees the same cameras.
+            decoder: 0,
             ..settings.clone()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;
