@@ -220,7 +220,9 @@ pub struct FitSettings {
     /// the smoke box ([`crate::model::Decoder::paper_small`]). The per-voxel
     /// fit then runs at the finest level only, from the decoder's density,
     /// as the paper's refinement does. 0: no decoder; the per-voxel fit runs
-    /// coarse to fine from an even start.
+    /// coarse to fine from an even start. Off: on the settings study's
+    /// frames 250 updates fitted the training cameras closer and lost 0.4 dB
+    /// on the scoring camera, at 3.8 times the time.
     pub decoder: usize,
     /// Seed of every render.
     pub seed: u64,
