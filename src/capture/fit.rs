@@ -869,6 +869,32 @@ mod tests {
         assert_eq!(up_axis(&z_up), 0);
     }
 
+    /// Three cameras of `size` pixels on a ring around the origin, each
+    /// seeing a disc of `radius` pixels at 0.3 in its middle: a ball's views.
+    fn ball_views(size: usize, radius: f64) -> ([Camera; 3], Vec<Image>) {
+        let camera = |x: f64, z: f64| Camera {
+            position: Vec3::new(x, 0.3, z),
+            look_at: Vec3::zeros(),
+            up: Vec3::y(),
+            lens: crate::scene::Lens::FovY(40.0),
+            width: size,
+            height: size,
+        };
+        let centre = (size as f64 - 1.0) / 2.0;
+        let disc = (0..size * size)
+            .map(|i| {
+                let (x, y) = ((i % size) as f64 - centre, (i / size) as f64 - centre);
+                if x * x + y * y < radius * radius {
+                    0.3
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let cameras = [camera(2.5, 0.0), camera(0.0, 2.5), camera(-1.8, 1.8)];
+        (cameras, vec![Image { width: size, height: size, data: disc }; 3])
+    }
+
     /// Both updates fit three views of a bright disc (a ball) that fills
     /// only part of the box, so the hull leaves some voxels out. The
     /// multiplicative one takes other steps and keeps every voxel of the
@@ -876,32 +902,7 @@ mod tests {
     /// both lower the images' error.
     #[test]
     fn the_log_density_update_fits_a_ball() {
-        const SIZE: usize = 64;
-        let camera = |x: f64, z: f64| Camera {
-            position: Vec3::new(x, 0.3, z),
-            look_at: Vec3::zeros(),
-            up: Vec3::y(),
-            lens: crate::scene::Lens::FovY(40.0),
-            width: SIZE,
-            height: SIZE,
-        };
-        let cameras = [camera(2.5, 0.0), camera(0.0, 2.5), camera(-1.8, 1.8)];
-        let centre = (SIZE as f64 - 1.0) / 2.0;
-        let disc = Image {
-            width: SIZE,
-            height: SIZE,
-            data: (0..SIZE * SIZE)
-                .map(|i| {
-                    let (x, y) = ((i % SIZE) as f64 - centre, (i / SIZE) as f64 - centre);
-                    if x * x + y * y < 16.0 * 16.0 {
-                        0.3
-                    } else {
-                        0.0
-                    }
-                })
-                .collect(),
-        };
-        let images = vec![disc; 3];
+        let (cameras, images) = ball_views(64, 16.0);
         let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
         let run = |log_density: bool| {
             let settings = FitSettings {
@@ -936,28 +937,7 @@ mod tests {
 
     #[test]
     fn the_decoder_stage_fits_a_ball_before_the_finest_level() {
-        const SIZE: usize = 32;
-        let camera = |x: f64, z: f64| Camera {
-            position: Vec3::new(x, 0.3, z),
-            look_at: Vec3::zeros(),
-            up: Vec3::y(),
-            lens: crate::scene::Lens::FovY(40.0),
-            width: SIZE,
-            height: SIZE,
-        };
-        let cameras = [camera(2.5, 0.0), camera(0.0, 2.5), camera(-1.8, 1.8)];
-        let centre = (SIZE as f64 - 1.0) / 2.0;
-        let disc: Vec<f64> = (0..SIZE * SIZE)
-            .map(|i| {
-                let (x, y) = ((i % SIZE) as f64 - centre, (i / SIZE) as f64 - centre);
-                if x * x + y * y < 8.0 * 8.0 {
-                    0.3
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let images = vec![Image { width: SIZE, height: SIZE, data: disc }; 3];
+        let (cameras, images) = ball_views(32, 8.0);
         // A box longer along y: the decoder's cube holds voxels outside it.
         let smoke_box = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
         let settings = FitSettings {
@@ -985,6 +965,9 @@ mod tests {
         assert!(finest[14] < decoder[29], "the finest level did not go on from the decoder's fit");
         assert_eq!(done.scene.density.shape, grid_shape(&smoke_box.0, &smoke_box.1, 8));
         assert!(done.scene.density.data.iter().all(|d| d.is_finite() && *d >= 0.0));
+        // The cube's voxels past the box: centres at +-0.4375 along x and z.
+        let inside = in_box(&cube_around(&smoke_box.0, &smoke_box.1, 8), &smoke_box.0, &smoke_box.1);
+        assert_eq!(inside.iter().filter(|&&i| i).count(), 6 * 8 * 6);
         let cube = FitSettings { resolution: 12, ..settings };
         assert!(cube.validate().unwrap_err().0.contains("decoder"), "a decoder needs a cube of 4 * 2^n voxels");
     }
