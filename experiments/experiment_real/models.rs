@@ -132,7 +132,7 @@ pub fn run(
             let result = fit_frame(capture, roles, &images, &settings, rig.as_ref(), &mut |row| {
                 if row.update % 20 == 0 {
                     eprintln!(
-                        "  frame {frame} {}: level {} update {} image rmse {:.5} ({:.0} s)",
+                        "  frame {frame} {}: stage {} update {} image rmse {:.5} ({:.0} s)",
                         model.name(),
                         row.level,
                         row.update,

@@ -108,7 +108,7 @@ pub fn fit_and_write(
     let mut log: Vec<FitRow> = Vec::new();
     let result = fit_frame(&capture, &roles, &images, settings, rig.as_ref(), &mut |row| {
         eprint!(
-            "\rlevel {} update {}: image RMSE {:.5} ({:.0} s)   ",
+            "\rstage {} update {}: image RMSE {:.5} ({:.0} s)   ",
             row.level,
             row.update,
             row.image_mse.sqrt(),
