@@ -8,8 +8,10 @@
 //! fit to one render per light and one of the emission alone. The density
 //! follows the images' reverse-mode gradient (Adam on its logarithm,
 //! inside the visual hull of the real silhouettes) plus the priors of
-//! [`super::priors`], coarse to fine. The camera response is a power law shared by every
-//! camera ([`FitSettings::gamma`]) and a gain per training camera; the
+//! [`super::priors`], coarse to fine (or, with [`FitSettings::decoder`],
+//! from the paper's latent-and-decoder model at the finest level). The
+//! camera response is a power law shared by every camera
+//! ([`FitSettings::gamma`]) and a gain per training camera; the
 //! held-out camera's response follows from a rule fixed in advance, never
 //! from its photograph.
 //!
