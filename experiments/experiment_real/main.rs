@@ -19,8 +19,8 @@ mod models;
 mod resume;
 
 use clap::Parser;
-use dualphoton::capture::fit::{FitSettings, ImageModel};
 use dualphoton::capture::frame::{self, Roles};
+use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::{calibration, frames, protocol::Protocol, Capture};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};

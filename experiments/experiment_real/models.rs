@@ -6,11 +6,12 @@
 
 use crate::figures::{self, FIGURE_FRAMES};
 use crate::resume;
-use dualphoton::capture::fit::{training_rmse, FitSettings, ImageModel};
+use dualphoton::capture::fit::training_rmse;
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::protocol::{ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
 use dualphoton::capture::rig::Rig;
+use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::io::plot::{line_chart, Axes, Series};

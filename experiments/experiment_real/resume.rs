@@ -3,9 +3,9 @@
 //! settings. The record of them is `settings.json`, written before the
 //! first fit.
 
-use dualphoton::capture::fit::FitSettings;
 use dualphoton::capture::frame::Roles;
 use dualphoton::capture::rig::{calibration_frames, Rig};
+use dualphoton::capture::settings::FitSettings;
 use dualphoton::capture::Capture;
 use dualphoton::error::{Error, Result};
 use dualphoton::io::manifest::write_json;

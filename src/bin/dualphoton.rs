@@ -1,7 +1,7 @@
 //! The `dualphoton` command line: `render`, `grad`, `fit`, `judge` and `scene` (see `--help`).
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use dualphoton::capture::fit::FitSettings;
+use dualphoton::capture::settings::FitSettings;
 use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
@@ -211,7 +211,7 @@ struct FitArgs {
     threads: Option<usize>,
     /// A study file: JSON setting any library setting by name, {"paper": {"train": {...}, "refine": {...}},
     /// "prior": {...}} (experiments/studies/ has examples); the options above override it. With --capture,
-    /// the capture fit's settings (fields of dualphoton::capture::fit::FitSettings), e.g. {"threshold": 0}
+    /// the capture fit's settings (fields of dualphoton::capture::settings::FitSettings), e.g. {"threshold": 0}
     /// for photographs whose dark pixels were not set to 0.
     #[arg(long)]
     study: Option<PathBuf>,

@@ -4,10 +4,11 @@
 //! under the field's protocol. `dualphoton fit --capture` and
 //! `experiment_real` both go through here.
 
-use super::fit::{fit, render_view, Fit, FitRow, FitSettings};
+use super::fit::{fit, render_view, Fit, FitRow};
 use super::observe::{observe, Observed};
 use super::protocol::{Aligned, Oracle, Protocol, Score};
 use super::rig::Rig;
+use super::settings::FitSettings;
 use super::{frames, Capture, Frames};
 use crate::error::{Error, Result};
 use crate::image::Image;

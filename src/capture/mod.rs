@@ -33,6 +33,7 @@ pub mod priors;
 pub mod protocol;
 pub mod rig;
 pub mod scalarflow_cameras;
+pub mod settings;
 
 use crate::math::Vec3;
 use crate::scene::Camera;

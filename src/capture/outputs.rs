@@ -8,9 +8,10 @@
 //! `manifest.json`.
 
 use super::calibration;
-use super::fit::{training_views, FitRow, FitSettings};
+use super::fit::{training_views, FitRow};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
 use super::rig::Rig;
+use super::settings::FitSettings;
 use super::Capture;
 use crate::error::{Error, Result};
 use crate::experiment::Run;

@@ -11,8 +11,9 @@
 //! median over those frames. The held-out camera is not part of it.
 
 use super::align::{take_out_shared, Corrections};
-use super::fit::{fit, Fit, FitSettings, ImageModel};
+use super::fit::{fit, Fit};
 use super::observe::observe;
+use super::settings::{FitSettings, ImageModel};
 use super::Capture;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};

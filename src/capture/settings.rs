@@ -1,0 +1,395 @@
+//! How a real capture's frame is fitted: the image model and every
+//! setting of [`super::fit`], with the defaults the settings study chose
+//! on frames and cameras other than those reported
+//! (docs/studies/real_settings.md), and their checks.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// How the rendered image arises from the density.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImageModel {
+    /// The lights scattered several times (`orders` in the fit settings), plus the ambient term.
+    Multiple,
+    /// The lights scattered once, plus the ambient term.
+    Single,
+    /// No lights: brightness proportional to density along the ray,
+    /// attenuated (the image model of PINF and HyFluid).
+    EmissionAbsorption,
+}
+
+impl ImageModel {
+    /// The name in files and tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImageModel::Multiple => "multiple",
+            ImageModel::Single => "single",
+            ImageModel::EmissionAbsorption => "emission-absorption",
+        }
+    }
+
+    /// Most scattering events on a light path, where the multiple model
+    /// scatters up to `orders` times.
+    pub(super) fn max_order(self, orders: u32) -> u32 {
+        match self {
+            ImageModel::Multiple => orders,
+            _ => 1,
+        }
+    }
+
+    /// Whether the model has lights.
+    pub(super) fn lit(self) -> bool {
+        self != ImageModel::EmissionAbsorption
+    }
+}
+
+/// How a frame is fitted. Every default was chosen on frames and cameras
+/// other than those reported (docs/studies/real_settings.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FitSettings {
+    /// The image model.
+    pub model: ImageModel,
+    /// Working resolution: 1/`factor` of the capture's, by area averaging.
+    pub factor: usize,
+    /// Voxels along the smoke box's longest edge at the finest level.
+    pub resolution: usize,
+    /// Adam updates per level, coarsest first; each level doubles the
+    /// resolution of the one before, the last is at `resolution`. On the
+    /// settings study's frames 80 at the finest level scored better than 40
+    /// and 160 (which fits the training cameras closer and the unseen one
+    /// worse), by the additive update and again by the logarithmic one.
+    pub updates: Vec<usize>,
+    /// Adam step: with `log_density`, of the density's logarithm (a
+    /// fraction of each voxel's own density); without, in units of the
+    /// level's mean density over the hull. 0.05: on the settings study's
+    /// frames 0.1 scored 0.01 dB lower on the logarithm.
+    pub lr: f64,
+    /// Take the Adam steps on the density's logarithm instead of the
+    /// density: each voxel then moves by a fraction of itself, as a
+    /// multiplicative tomography update (MART) does, and thin voxels change
+    /// slowly where thick ones change fast. On by default: on the settings
+    /// study's frames it gained 0.29 dB on the scoring camera for multiple
+    /// scattering, on every frame (the one model studied; all three use it).
+    pub log_density: bool,
+    /// Weight of the smoothness term: the mean over neighbouring voxel
+    /// pairs of the squared difference of their optical depth across one
+    /// voxel, against the images' mean squared error.
+    pub smoothness: f64,
+    /// Factor on the smoothness term's pairs across the vertical (the grid
+    /// axes other than the one nearest the training cameras' mean up
+    /// direction). Cameras on one level arc each see every height of the
+    /// smoke, but leave it open across. On the settings study's frames the
+    /// factors 3 and 10 lost 0.17 and 0.63 dB on the scoring camera and 0.3
+    /// gained 0.01 dB: 1, as along the vertical.
+    pub horizontal_smoothness: f64,
+    /// Weight of the sparsity term ([`sparsity`]) against the images' mean
+    /// squared error. Off: on the settings study's frames 0.0001 changed
+    /// nothing and 0.001 lost 0.7-1.4 dB on the scoring camera.
+    pub sparsity: f64,
+    /// Optical depth across the hull's mean chord at the start. On the
+    /// settings study's frames (docs/studies/real_settings.md) 1 and 2 scored best
+    /// on the scoring camera, within 0.05 dB of each other for multiple
+    /// scattering (0.15 for single); 1 fits the training cameras better.
+    pub start_depth: f64,
+    /// How the start's density is spread over the hull ([`StartShape`]).
+    /// Even: on the settings study's frames both shaped starts lost 0.1-0.3 dB
+    /// on the scoring camera.
+    pub start_shape: StartShape,
+    /// The lights and emission are fitted again every this many updates.
+    pub refit_every: usize,
+    /// Photons per render (multiple scattering only).
+    pub photons: u64,
+    /// Most scattering events on a light path of the multiple model
+    /// (orders 2 and up by photon mapping), 2 to 16. On the settings
+    /// study's frames 2, 3 and 5 scored 33.43, 33.49 and 33.49 dB on the
+    /// scoring camera: the fewest within 0.05 dB of the best is 3.
+    pub orders: u32,
+    /// Camera samples per pixel per update. The lit models' pixels are
+    /// noisy at 1 (each sample gathers the light at one jittered point);
+    /// on the settings study's frames 2 gained 0.3 dB on the scoring camera
+    /// for multiple scattering over 1, and 4 no more than 2.
+    pub spp: u32,
+    /// Henyey-Greenstein asymmetry assumed for the fog.
+    pub g: f64,
+    /// Single-scattering albedo assumed for the fog (water droplets absorb almost nothing).
+    pub albedo: f64,
+    /// The capture's black threshold (code value / full scale): its
+    /// processing set everything up to it to 0 (ScalarFlow's background
+    /// subtraction: codes up to 8). Where a photograph is 0, a rendered
+    /// value below it is no error; a rendered view is set to 0 below it.
+    pub threshold: f64,
+    /// Correct every training camera's principal point so that its
+    /// photograph agrees with the render ([`super::align`]), from the second
+    /// stage on (level, or the finest after the decoder's), whenever the lights are fitted again; the offsets' mean
+    /// over the cameras stays 0 (the calibration's average is kept).
+    pub align: bool,
+    /// With `align`, also correct every training camera's focal lengths by
+    /// the magnification that best moves its photograph onto the render,
+    /// about its principal point; the magnifications' geometric mean over
+    /// the cameras stays 1. A held-out camera keeps its calibration's, by
+    /// this rule fixed in advance. On by default: on the settings study's
+    /// frames it gained 0.7-0.85 dB on the scoring camera for every model.
+    pub zoom: bool,
+    /// With `align`, align the training cameras once for every frame of the
+    /// capture ([`super::rig`]) instead of on each frame: the cameras never
+    /// move, and a thin plume constrains them poorly. On by default: on the
+    /// settings study's frames it gained 0.2 dB on the scoring camera for
+    /// multiple scattering and emission-absorption (0.5-0.6 dB on the thin
+    /// frame 5) and 0.4 dB for single scattering.
+    pub shared_alignment: bool,
+    /// With `shared_alignment`, how many calibration frames (at least one)
+    /// the training cameras are aligned on ([`super::rig::calibration_frames`]).
+    /// On the settings study's frames 5 instead of 3 gained 0.03 dB on the
+    /// scoring camera (multiple scattering) at 1.6 times the rig's time.
+    pub rig_frames: usize,
+    /// With `shared_alignment`, the working resolution of the calibration
+    /// frames' fits, 1/`rig_factor` of the capture's; none: `factor`. On the
+    /// settings study's frames 4 gained 0.07 dB at almost 4 times the rig's time.
+    pub rig_factor: Option<usize>,
+    /// Dilation of the silhouettes (full-resolution pixels) once the
+    /// training cameras are aligned: from then on each level's hull is
+    /// carved through the aligned cameras with this margin. Before, the
+    /// margin is the calibration's disagreement ([`SILHOUETTE_MARGIN_PX`]).
+    /// On the settings study's frames 20 scored best of 0, 8, 20 and 40
+    /// (0.3-0.5 dB over 40, every model) by the additive update; by the
+    /// logarithmic one 8 scored 0.08 dB above 20, too little to change it.
+    pub aligned_margin: f64,
+    /// Lights whose places are fitted ([`super::lights`]): from the second
+    /// stage on, the strongest this many candidates are kept and move
+    /// whenever the lights are fitted again. 0: every candidate stays in
+    /// its place and only the intensities are fitted.
+    pub lights: usize,
+    /// Fit a gain per training camera (the cameras' brightest smoke differs
+    /// by up to about a third between them): the photographs are divided by
+    /// their gains, whose geometric mean over the training cameras is held
+    /// at 1. A held-out camera's gain is that mean, 1, by this rule fixed
+    /// in advance. Off: one gain for every camera, absorbed by the lights.
+    /// On by default: on the settings study's frames it gained 0.0-0.2 dB
+    /// on the scoring camera for every model.
+    pub gains: bool,
+    /// Fit the emission beside the lights in the lit models: an ambient
+    /// term, light that reaches every voxel alike and unshadowed. With it,
+    /// the lit models contain emission-absorption (their lights all at 0).
+    /// Off: the lights must explain every pixel, with their shadows.
+    pub ambient: bool,
+    /// The cameras' response curve, shared by all: a photograph's code
+    /// value / full scale is the radiance (times the camera's gain) to the
+    /// power 1/`gamma`. The fit works on the photographs to the power
+    /// `gamma`, where the image is linear in the lights; rendered views go
+    /// back through the curve. 1: the codes are proportional to radiance,
+    /// which scored best on the settings study's frames (0.8, 1.5 and 2.2
+    /// lost 0.2-2.9 dB on the scoring camera, every model).
+    pub gamma: f64,
+    /// Adam updates of the paper's density model before the per-voxel
+    /// fit: a 64-d latent and a small decoder, fitted from scratch, whose
+    /// output is the density on a cube of `resolution` voxels a side around
+    /// the smoke box ([`crate::model::Decoder::paper_small`]). The per-voxel
+    /// fit then runs at the finest level only, from the decoder's density,
+    /// as the paper's refinement does (`start_shape` and the coarser
+    /// levels' `updates` are then unused). 0: no decoder; the per-voxel fit
+    /// runs coarse to fine from an even start. Off: on the settings study's
+    /// frames 250 updates fitted the training cameras closer and lost 0.4 dB
+    /// on the scoring camera, at 4-5 times the time.
+    pub decoder: usize,
+    /// Seed of every render.
+    pub seed: u64,
+}
+
+/// How the start's density is spread over the hull; its mean is set by
+/// [`FitSettings::start_depth`] either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StartShape {
+    /// The same density everywhere in the hull.
+    Even,
+    /// Each voxel in proportion to the darkest of the training photographs
+    /// where its centre appears: a soft hull that already carries the
+    /// plume's shape from every view.
+    Darkest,
+    /// Each voxel in proportion to the geometric mean of the training
+    /// photographs where its centre appears.
+    GeometricMean,
+}
+
+impl Default for FitSettings {
+    fn default() -> Self {
+        FitSettings {
+            model: ImageModel::Multiple,
+            factor: 8,
+            resolution: 64,
+            updates: vec![40, 40, 80],
+            lr: 0.05,
+            log_density: true,
+            smoothness: 0.001,
+            horizontal_smoothness: 1.0,
+            sparsity: 0.0,
+            start_depth: 1.0,
+            start_shape: StartShape::Even,
+            refit_every: 10,
+            photons: 20_000,
+            orders: 3,
+            spp: 2,
+            g: 0.6,
+            albedo: 1.0,
+            threshold: 8.0 / 255.0,
+            align: true,
+            zoom: true,
+            shared_alignment: true,
+            rig_frames: 3,
+            rig_factor: None,
+            aligned_margin: 20.0,
+            lights: 0,
+            gains: true,
+            ambient: true,
+            gamma: 1.0,
+            decoder: 0,
+            seed: 0,
+        }
+    }
+}
+
+impl FitSettings {
+    /// Whether the training cameras are aligned once for every frame, by a
+    /// rig ([`FitSettings::shared_alignment`]).
+    pub fn aligns_once(&self) -> bool {
+        self.align && self.shared_alignment
+    }
+
+    /// The settings in the JSON file at `path` (fields not given keep their
+    /// defaults), checked.
+    pub fn read(path: &std::path::Path) -> Result<FitSettings> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+        let settings: FitSettings =
+            serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+        settings.validate()?;
+        Ok(settings)
+    }
+
+    /// One-line errors for settings no fit can run with.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str| Err(Error(format!("fit settings: {what}")));
+        if self.factor == 0 {
+            return bad("factor must be at least 1");
+        }
+        if self.rig_factor == Some(0) {
+            return bad("rig_factor must be at least 1");
+        }
+        if self.rig_frames == 0 {
+            return bad("rig_frames must be at least 1");
+        }
+        if self.updates.is_empty() || self.resolution >> (self.updates.len() - 1) < 2 {
+            return bad("resolution must give at least 2 voxels along the longest edge at the coarsest level");
+        }
+        if !(self.horizontal_smoothness.is_finite() && self.horizontal_smoothness >= 0.0) {
+            return bad("horizontal_smoothness must be finite and >= 0");
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return bad("lr must be finite and > 0");
+        }
+        if !(self.smoothness.is_finite() && self.smoothness >= 0.0) {
+            return bad("smoothness must be finite and >= 0");
+        }
+        if !(self.sparsity.is_finite() && self.sparsity >= 0.0) {
+            return bad("sparsity must be finite and >= 0");
+        }
+        if !(self.start_depth.is_finite() && self.start_depth > 0.0) {
+            return bad("start_depth must be finite and > 0");
+        }
+        if self.refit_every == 0 || self.spp == 0 {
+            return bad("refit_every and spp must be at least 1");
+        }
+        // 1 is the single model; past 16 the photon map's memory grows for
+        // light the images cannot see (5 orders score as 3).
+        if !(2..=16).contains(&self.orders) {
+            return bad("orders must be in 2..=16 (1 is the single model)");
+        }
+        crate::scene::validate::check_photons(self.photons, self.orders, "fit settings: photons")?;
+        if !(0.0..1.0).contains(&self.threshold) {
+            return bad("threshold must be in [0, 1)");
+        }
+        if !(self.aligned_margin.is_finite() && self.aligned_margin >= 0.0) {
+            return bad("aligned_margin must be finite and >= 0");
+        }
+        if !(self.gamma.is_finite() && (0.25..=4.0).contains(&self.gamma)) {
+            return bad("gamma must be in [0.25, 4]");
+        }
+        if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
+            return bad("g must be in (-1, 1) and albedo in [0, 1]");
+        }
+        if self.decoder > 0 && crate::model::Decoder::paper_small(self.resolution).is_err() {
+            return bad("with decoder, resolution must be 8, 16, 32, 64, 128, ... (the decoder's cube)");
+        }
+        // Aligned on the frame, the finest stage would carve its hull before any alignment.
+        if self.decoder > 0 && self.align && !self.shared_alignment {
+            return bad("decoder needs the cameras aligned once per capture (shared_alignment) or not at all");
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_fit_settings_are_valid_and_change_what_their_names_say() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/studies/real_dev");
+        let mut names = Vec::new();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            let settings: FitSettings = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            settings.validate().unwrap();
+            let name = path.file_stem().unwrap().to_string_lossy().into_owned();
+            let d = FitSettings::default();
+            // A name is one or more settings joined by '+'.
+            let says = |part: &str| match part {
+                "default" => settings == d,
+                "no_align" => !settings.align,
+                "zoom" => settings.zoom && settings.align,
+                "no_zoom" => !settings.zoom,
+                "shared_alignment" => settings.aligns_once(),
+                "per_frame_alignment" => !settings.shared_alignment && settings.align,
+                n if n.starts_with("smooth_") => settings.smoothness.to_string() == n["smooth_".len()..],
+                n if n.starts_with("horizontal_") => {
+                    settings.horizontal_smoothness.to_string() == n["horizontal_".len()..]
+                }
+                n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
+                n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
+                n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
+                "gains" => settings.gains,
+                "log_density" => settings.log_density,
+                "additive" => !settings.log_density,
+                n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],
+                "no_ambient" => !settings.ambient,
+                "factor_4_res_96" => settings.factor == 4 && settings.resolution == 96,
+                n if n.starts_with("factor_") && !n.contains("res") => {
+                    settings.factor.to_string() == n["factor_".len()..]
+                }
+                n if n.starts_with("res_") => settings.resolution.to_string() == n["res_".len()..],
+                n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
+                n if n.starts_with("updates_") => {
+                    n["updates_".len()..].split('_').map(|u| u.parse().unwrap()).collect::<Vec<usize>>()
+                        == settings.updates
+                }
+                n if n.starts_with("margin_") => settings.aligned_margin.to_string() == n["margin_".len()..],
+                "darkest" => settings.start_shape == StartShape::Darkest,
+                "geometric_mean" => settings.start_shape == StartShape::GeometricMean,
+                n if n.starts_with("rig_frames_") => settings.rig_frames.to_string() == n["rig_frames_".len()..],
+                n if n.starts_with("rig_factor_") => settings.rig_factor == n["rig_factor_".len()..].parse().ok(),
+                n if n.starts_with("orders_") => settings.orders.to_string() == n["orders_".len()..],
+                n if n.starts_with("photons_") => settings.photons.to_string() == n["photons_".len()..],
+                n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],
+                n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
+                n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
+                n if n.starts_with("decoder_") => settings.decoder.to_string() == n["decoder_".len()..],
+                _ => false,
+            };
+            let changed = name.split('+').all(says);
+            assert!(changed, "{name}.json does not set what its name says");
+            names.push(name);
+        }
+        assert!(names.len() >= 2, "{names:?}");
+    }
+}
