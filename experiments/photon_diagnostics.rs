@@ -15,6 +15,7 @@ use dualphoton::eval::metrics::{reference_noise, rel_mean_diff};
 use dualphoton::eval::sweep::ERROR_BLOCK;
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
+use dualphoton::io::manifest::cargo_run_line;
 use dualphoton::io::rows::write_rows;
 use dualphoton::render::frozen::Frozen;
 use dualphoton::render::path::{render_path, PathOptions};
@@ -167,7 +168,7 @@ fn run(mut args: Args) -> Result<()> {
             100.0 * t.top_10_percent
         );
     }
-    let _ = writeln!(md, "\nRegenerate: `cargo run --release --bin photon_diagnostics` ({:.0} s).", run.seconds());
+    let _ = writeln!(md, "\nRegenerate: `{}` ({:.0} s).", cargo_run_line(), run.seconds());
     std::fs::write(run.path("summary.md"), &md)?;
     run.write_manifest(&args)?;
     print!("{md}");

@@ -43,6 +43,20 @@ pub fn command_line() -> String {
     std::iter::once(name).chain(args.map(quote)).collect::<Vec<_>>().join(" ")
 }
 
+/// The command line as run, as a user repeats it from the repository:
+/// `cargo run --release --bin NAME -- ARGS` (a summary's "Regenerate" line).
+pub fn cargo_run_line() -> String {
+    cargo_run(&command_line())
+}
+
+/// `command` (the program's name, then its arguments) as a `cargo run` line.
+fn cargo_run(command: &str) -> String {
+    match command.split_once(' ') {
+        Some((name, args)) => format!("cargo run --release --bin {name} -- {args}"),
+        None => format!("cargo run --release --bin {command}"),
+    }
+}
+
 /// `t` as an ISO 8601 UTC date and time to the second
 /// (`2024-02-29T13:05:09Z`); times before 1970 read as 1970.
 pub fn utc_date(t: SystemTime) -> String {
@@ -120,6 +134,16 @@ pub fn write_manifest<T: serde::Serialize>(path: &Path, settings: &T, wall_s: f6
 mod tests {
     use super::*;
     use std::time::Duration;
+
+    /// A summary's "Regenerate" line repeats the flags the run was given.
+    #[test]
+    fn a_command_becomes_the_cargo_line_that_repeats_it() {
+        assert_eq!(cargo_run("stability"), "cargo run --release --bin stability");
+        assert_eq!(
+            cargo_run("photon_diagnostics --path-spp 65536"),
+            "cargo run --release --bin photon_diagnostics -- --path-spp 65536"
+        );
+    }
 
     #[test]
     fn dates_are_iso_8601_utc() {
