@@ -20,6 +20,7 @@ mod resume;
 
 use clap::Parser;
 use dualphoton::capture::frame::{self, Roles};
+use dualphoton::capture::scalarflow_cameras::held_out_zoom;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::{calibration, frames, protocol::Protocol, Capture};
 use dualphoton::error::{Error, Result};
@@ -37,8 +38,12 @@ struct Args {
     data: PathBuf,
     /// ScalarFlow's own camera file (GlobTrans's scalaFlow_cameras.json): each camera's focal length from
     /// its vertical field of view instead of the calibration's horizontal one; the poses stay.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "held_out_focal_lengths")]
     focal_lengths: Option<PathBuf>,
+    /// ScalarFlow's own camera file, for the held-out camera alone: its focal lengths are multiplied by its
+    /// focal length there over the calibration's, divided by the training cameras' geometric mean of the same.
+    #[arg(long)]
+    held_out_focal_lengths: Option<PathBuf>,
     /// Frames scored.
     #[arg(long, value_delimiter = ',', default_value = "0,10,20,30,40,50,60,70,80,90,100,110,119")]
     frames: Vec<usize>,
@@ -75,7 +80,7 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> Result<()> {
-    let capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
+    let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
     let fit_settings = match &args.fit_settings {
         Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
@@ -85,6 +90,12 @@ fn run(args: Args) -> Result<()> {
     let training: Vec<usize> = (0..capture.views.len())
         .filter(|&v| v != held_out && !capture.views[v].held_out && !dropped.contains(&v))
         .collect();
+    if let Some(path) = &args.held_out_focal_lengths {
+        let k = held_out_zoom(&capture, path, &training, held_out)
+            .map_err(|e| Error(format!("--held-out-focal-lengths: {e}")))?;
+        eprintln!("held-out camera {}: focal lengths x {k:.4} (the camera file)", capture.views[held_out].name);
+        capture.views[held_out].camera = capture.views[held_out].camera.zoom(k);
+    }
     let roles = Roles { training, held_out: vec![held_out] };
     frame::check(&capture, &roles, &args.frames, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;

@@ -39,10 +39,38 @@ const MATCH_TOLERANCE: f64 = 0.01;
 /// name the file: unreadable, a camera without `position` or with a
 /// field of view outside (0, 180) degrees, a capture camera without match.
 pub fn refocus(capture: &mut Capture, path: &Path) -> Result<()> {
+    let focal = focal_lengths(capture, path)?;
+    for (view, f) in capture.views.iter_mut().zip(focal) {
+        let [_, _, cx, cy] = view.camera.intrinsics();
+        view.camera.lens = Lens::Pinhole { fx: f, fy: f, cx, cy };
+    }
+    Ok(())
+}
+
+/// The factor by which the file at `path` says camera `held_out`'s focal
+/// lengths are off, in the scale of a rig of the `training` cameras: its
+/// focal length in the file over its vertical one in `capture`, divided by
+/// the geometric mean of that ratio over `training` (whose own corrections
+/// the rig fits from their photographs, with geometric mean 1). The
+/// held-out camera's photograph is never looked at. Errors as [`refocus`].
+pub fn held_out_zoom(capture: &Capture, path: &Path, training: &[usize], held_out: usize) -> Result<f64> {
+    let focal = focal_lengths(capture, path)?;
+    let ratio = |v: usize| focal[v] / capture.views[v].camera.intrinsics()[1];
+    if training.is_empty() {
+        bail!("{}: no training camera to scale the held-out camera against", show(path));
+    }
+    let mean_log = training.iter().map(|&v| ratio(v).ln()).sum::<f64>() / training.len() as f64;
+    Ok(ratio(held_out) / mean_log.exp())
+}
+
+/// Per camera of `capture`, the focal length (square pixels) the file at
+/// `path` gives it (see [`refocus`]).
+fn focal_lengths(capture: &Capture, path: &Path) -> Result<Vec<f64>> {
     let shown = show(path);
     let cameras = read(path).map_err(|e| Error(format!("{shown}: {e}")))?;
     let tolerance = MATCH_TOLERANCE * closest_pair(capture);
-    for view in &mut capture.views {
+    let mut focal = Vec::new();
+    for view in &capture.views {
         let at = view.camera.position;
         let found = cameras.iter().find(|(_, position, _)| (position - at).norm() <= tolerance);
         let Some((name, _, fov)) = found else {
@@ -51,11 +79,9 @@ pub fn refocus(capture: &mut Capture, path: &Path) -> Result<()> {
         let Some(fov) = fov else {
             bail!("{shown}: camera {name} has no fov_vertical");
         };
-        let [_, _, cx, cy] = view.camera.intrinsics();
-        let f = 0.5 * view.camera.height as f64 / (0.5 * fov.to_radians()).tan();
-        view.camera.lens = Lens::Pinhole { fx: f, fy: f, cx, cy };
+        focal.push(0.5 * view.camera.height as f64 / (0.5 * fov.to_radians()).tan());
     }
-    Ok(())
+    Ok(focal)
 }
 
 /// Each camera of the file: its name, its position in the capture's frame
@@ -125,6 +151,34 @@ mod tests {
         let path = dir.join(name);
         std::fs::write(&path, text).unwrap();
         path
+    }
+
+    /// A factor the file shares over every camera is the rig's scale, not an
+    /// error of the held-out camera; what it gives the held-out camera beyond
+    /// the training cameras' geometric mean is.
+    #[test]
+    fn the_held_out_zoom_is_the_files_ratio_over_the_training_cameras() {
+        let at = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 0.5), Vec3::new(-1.0, 0.0, 0.5)];
+        let capture = Capture { views: vec![view("a", at[0]), view("b", at[1]), view("c", at[2])], smoke_box: None };
+        // The capture's cameras have focal length 900 over a height of 160 pixels.
+        let fov = |f: f64| 2.0 * (80.0 / f).atan().to_degrees();
+        let entry = |name: &str, p: Vec3, f: f64| {
+            format!(r#""{name}": {{"position": [{}, {}, {}], "fov_vertical": {}}}"#, p.x, p.y, -p.z, fov(f))
+        };
+        let path = file(
+            "zoom.json",
+            &format!(
+                "{{{}, {}, {}}}",
+                entry("0", at[0], 450.0 * 0.98),
+                entry("1", at[1], 450.0 / 0.98),
+                entry("2", at[2], 450.0 * 1.03)
+            ),
+        );
+        let k = held_out_zoom(&capture, &path, &[0, 1], 2).unwrap();
+        assert!((k - 1.03).abs() < 1e-12, "{k}");
+        let k = held_out_zoom(&capture, &path, &[1], 0).unwrap();
+        assert!((k - 0.98 * 0.98).abs() < 1e-12, "{k}");
+        assert!(held_out_zoom(&capture, &path, &[], 2).unwrap_err().0.contains("no training camera"));
     }
 
     #[test]
