@@ -12,9 +12,10 @@
 //! magnification its photograph asks for, while ScalarFlow's camera
 //! orientations do neither; so only the focal lengths are taken, the poses
 //! stay the capture's. They are an option, not the default: with them two
-//! of four cameras held out in turn scored lower, the reconstruction
-//! standing a few pixels higher or lower in their view
-//! (docs/studies/real_settings.md).
+//! of four cameras held out in turn scored lower, and so they did when only
+//! the held-out camera took the file's correction ([`held_out_zoom`]): a
+//! magnification about the principal point also moves the smoke, against
+//! the camera's own vertical offset (docs/studies/real_settings.md).
 
 use super::Capture;
 use crate::bail;
