@@ -158,10 +158,16 @@ pub fn take_out_shared(offsets: &mut [[f64; 2]], factors: &mut [f64]) {
     for o in offsets.iter_mut() {
         *o = [o[0] - mean[0], o[1] - mean[1]];
     }
-    let geometric_mean = (factors.iter().map(|k| k.ln()).sum::<f64>() / factors.len().max(1) as f64).exp();
+    let shared = geometric_mean(factors);
     for k in factors.iter_mut() {
-        *k /= geometric_mean;
+        *k /= shared;
     }
+}
+
+/// The geometric mean of per-camera `factors` (gains, magnifications), the
+/// scale every camera shares; 1 for none.
+pub fn geometric_mean(factors: &[f64]) -> f64 {
+    (factors.iter().map(|k| k.ln()).sum::<f64>() / factors.len().max(1) as f64).exp()
 }
 
 /// The Gauss-Newton step `-h^-1 g`; without `zoom`, in the offset alone

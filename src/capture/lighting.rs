@@ -6,6 +6,7 @@
 //! places are not linear: a Levenberg-Marquardt step with the Jacobian of
 //! [`super::lights`] (dual lanes), kept only if the renderer agrees.
 
+use super::align::geometric_mean;
 use super::lights::{flatten, single_image, step, Gathers};
 use crate::error::Result;
 use crate::image::Image;
@@ -119,7 +120,7 @@ pub(super) fn fit_gains(gains: &mut [f64], weights: &[f64], basis: &[Vec<Image>]
             }
         })
         .collect();
-    let mean = (fitted.iter().map(|g| g.ln()).sum::<f64>() / fitted.len() as f64).exp();
+    let mean = geometric_mean(&fitted);
     gains.iter_mut().zip(&fitted).for_each(|(g, f)| *g = f / mean);
 }
 

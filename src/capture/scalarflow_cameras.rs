@@ -17,6 +17,7 @@
 //! magnification about the principal point also moves the smoke, against
 //! the camera's own vertical offset (docs/studies/real_settings.md).
 
+use super::align::geometric_mean;
 use super::Capture;
 use crate::bail;
 use crate::error::{show, Error, Result};
@@ -60,8 +61,8 @@ pub fn held_out_zoom(capture: &Capture, path: &Path, training: &[usize], held_ou
     if training.is_empty() {
         bail!("{}: no training camera to scale the held-out camera against", show(path));
     }
-    let mean_log = training.iter().map(|&v| ratio(v).ln()).sum::<f64>() / training.len() as f64;
-    Ok(ratio(held_out) / mean_log.exp())
+    let ratios: Vec<f64> = training.iter().map(|&v| ratio(v)).collect();
+    Ok(ratio(held_out) / geometric_mean(&ratios))
 }
 
 /// Per camera of `capture`, the focal length (square pixels) the file at
