@@ -107,51 +107,8 @@ pub fn fit(
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
     settings.validate()?;
-    let (cameras, mut offsets, mut zooms) = match fixed {
-        Some(fixed) => {
-            let (cameras, offsets) = fixed.apply(cameras, settings.factor)?;
-            (cameras, offsets, fixed.zooms.clone())
-        }
-        None => (cameras.to_vec(), vec![[0.0; 2]; cameras.len()], vec![1.0; cameras.len()]),
-    };
-    let start = Instant::now();
-    let (lo, hi) = smoke_box;
-    let codes = images;
-    // The photographs through the inverse response: linear in the lights.
-    let photographs: Vec<Image> = images.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect();
-    let threshold = settings.threshold.powf(settings.gamma);
-    // The photographs over their cameras' gains: what the renders are fitted to.
-    let mut gains = vec![1.0; images.len()];
-    let mut images = photographs.clone();
+    let mut state = FrameFit::new(cameras, images, smoke_box, settings, fixed)?;
     let levels = settings.updates.len();
-    let mut smoothness_axes = [settings.horizontal_smoothness; 3];
-    smoothness_axes[up_axis(&cameras)] = 1.0;
-    let mut scene = Scene {
-        density: Grid::new(lo, hi, [1, 1, 1], vec![0.0]),
-        medium: Medium {
-            sigma_t_scale: 1.0,
-            albedo: settings.albedo,
-            g: settings.g,
-            max_order: settings.model.max_order(settings.orders),
-            emission: 0.0,
-        },
-        lights: if settings.model.lit() { candidate_lights(&lo, &hi) } else { Vec::new() },
-        cameras,
-        render: RenderSettings {
-            photons: if settings.model == ImageModel::Multiple { settings.photons } else { 0 },
-            spp: settings.spp,
-            seed: settings.seed,
-            ..RenderSettings::default()
-        },
-    };
-    let mut log = Vec::new();
-    let mut renders = 0u64;
-    // The last update's images: where the lights are fitted again, they censor the targets.
-    let mut last: Option<Vec<Image>> = None;
-    // Levenberg-Marquardt damping of the lights' places, kept between calls.
-    let mut damping = 1e-3;
-    // Emission-absorption has no lights: its emission is its image.
-    let ambient = settings.ambient || !settings.model.lit();
     // The stages: every level, coarsest first; or the decoder's, then the finest level.
     let stages: Vec<(Option<usize>, usize)> = if settings.decoder > 0 {
         vec![(None, settings.decoder), (Some(levels - 1), settings.updates[levels - 1])]
@@ -159,6 +116,139 @@ pub fn fit(
         settings.updates.iter().enumerate().map(|(level, &updates)| (Some(level), updates)).collect()
     };
     for (stage, &(level, updates)) in stages.iter().enumerate() {
+        state.stage(stage, level, updates, progress)?;
+    }
+    state.finish()
+}
+
+/// A frame's fit between two updates: what [`fit`] carries from one to the next.
+struct FrameFit<'a> {
+    settings: &'a FitSettings,
+    fixed: Option<&'a Corrections>,
+    smoke_box: (Vec3, Vec3),
+    /// The photographs as decoded: where the silhouettes come from.
+    codes: &'a [Image],
+    /// The photographs through the inverse response: linear in the lights.
+    photographs: Vec<Image>,
+    /// The photographs over their cameras' gains: what the renders are fitted to.
+    images: Vec<Image>,
+    gains: Vec<f64>,
+    /// The capture's black threshold in linear units.
+    threshold: f64,
+    offsets: Vec<[f64; 2]>,
+    zooms: Vec<f64>,
+    /// The training cameras, the density of the last stage, lights and emission.
+    scene: Scene,
+    /// Whether the emission term is fitted: emission-absorption has no lights, its emission is its image.
+    ambient: bool,
+    /// The smoothness term's weight along each grid axis (1 along the vertical).
+    smoothness_axes: [f64; 3],
+    /// The last update's images: where the lights are fitted again, they censor the targets.
+    last: Option<Vec<Image>>,
+    /// Levenberg-Marquardt damping of the lights' places, kept between calls.
+    damping: f64,
+    /// Renders so far: each update's seed.
+    renders: u64,
+    log: Vec<FitRow>,
+    start: Instant,
+}
+
+impl<'a> FrameFit<'a> {
+    fn new(
+        cameras: &[Camera],
+        codes: &'a [Image],
+        smoke_box: (Vec3, Vec3),
+        settings: &'a FitSettings,
+        fixed: Option<&'a Corrections>,
+    ) -> Result<Self> {
+        let (cameras, offsets, zooms) = match fixed {
+            Some(fixed) => {
+                let (cameras, offsets) = fixed.apply(cameras, settings.factor)?;
+                (cameras, offsets, fixed.zooms.clone())
+            }
+            None => (cameras.to_vec(), vec![[0.0; 2]; cameras.len()], vec![1.0; cameras.len()]),
+        };
+        let start = Instant::now();
+        let (lo, hi) = smoke_box;
+        let photographs: Vec<Image> = codes.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect();
+        let mut smoothness_axes = [settings.horizontal_smoothness; 3];
+        smoothness_axes[up_axis(&cameras)] = 1.0;
+        let scene = Scene {
+            density: Grid::new(lo, hi, [1, 1, 1], vec![0.0]),
+            medium: Medium {
+                sigma_t_scale: 1.0,
+                albedo: settings.albedo,
+                g: settings.g,
+                max_order: settings.model.max_order(settings.orders),
+                emission: 0.0,
+            },
+            lights: if settings.model.lit() { candidate_lights(&lo, &hi) } else { Vec::new() },
+            cameras,
+            render: RenderSettings {
+                photons: if settings.model == ImageModel::Multiple { settings.photons } else { 0 },
+                spp: settings.spp,
+                seed: settings.seed,
+                ..RenderSettings::default()
+            },
+        };
+        Ok(FrameFit {
+            settings,
+            fixed,
+            smoke_box,
+            codes,
+            images: photographs.clone(),
+            photographs,
+            gains: vec![1.0; codes.len()],
+            threshold: settings.threshold.powf(settings.gamma),
+            offsets,
+            zooms,
+            scene,
+            ambient: settings.ambient || !settings.model.lit(),
+            smoothness_axes,
+            last: None,
+            damping: 1e-3,
+            renders: 0,
+            log: Vec::new(),
+            start,
+        })
+    }
+
+    /// One stage: `updates` Adam steps on a level's grid (`None`: the decoder's cube).
+    fn stage(
+        &mut self,
+        stage: usize,
+        level: Option<usize>,
+        updates: usize,
+        progress: &mut dyn FnMut(&FitRow),
+    ) -> Result<()> {
+        let (grid, hull) = self.grid_and_hull(level)?;
+        let (mut density, mut params) = self.stage_start(stage, level, &grid, &hull)?;
+        let support =
+            Grid::new(grid.lo, grid.hi, grid.shape, hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect());
+        for update in 0..updates {
+            self.scene.density = density.clone();
+            if update % self.settings.refit_every == 0 {
+                self.refit(stage)?;
+            }
+            let (grad, row) = self.gradient(stage, update, &density, &hull, &support)?;
+            params.step(&mut density, &hull, &grad);
+            let row = FitRow { seconds: self.start.elapsed().as_secs_f64(), ..row };
+            progress(&row);
+            self.log.push(row);
+        }
+        if level.is_none() && !density.data.iter().any(|&d| d > 0.0) {
+            return Err(Error("the decoder's fit went to 0 everywhere in the hull: try another seed".into()));
+        }
+        self.scene.density = density;
+        Ok(())
+    }
+
+    /// A stage's grid and its visual hull, carved through the cameras as they
+    /// are now, with the aligned margin once they are aligned.
+    fn grid_and_hull(&self, level: Option<usize>) -> Result<(Grid<f64>, Vec<bool>)> {
+        let (lo, hi) = self.smoke_box;
+        let settings = self.settings;
+        let levels = settings.updates.len();
         let grid = match level {
             Some(level) => {
                 let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
@@ -166,78 +256,120 @@ pub fn fit(
             }
             None => cube_around(&lo, &hi, settings.resolution),
         };
-        let aligned = fixed.is_some() || offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
+        let aligned = self.fixed.is_some() || self.offsets.iter().any(|o| o[0] != 0.0 || o[1] != 0.0);
         let margin = if aligned { settings.aligned_margin } else { SILHOUETTE_MARGIN_PX };
-        let silhouettes: Vec<Vec<bool>> = codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
+        let silhouettes: Vec<Vec<bool>> =
+            self.codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
         let inside = in_box(&grid, &lo, &hi);
         let hull: Vec<bool> =
-            carve(&grid, &scene.cameras, &silhouettes).iter().zip(&inside).map(|(&h, &i)| h && i).collect();
+            carve(&grid, &self.scene.cameras, &silhouettes).iter().zip(&inside).map(|(&h, &i)| h && i).collect();
         if !hull.iter().any(|&h| h) {
             return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
         }
-        let (mut density, mut params) = match (stage, level) {
-            (0, None) => decoder_start(&grid, &hull, settings)?,
+        Ok((grid, hull))
+    }
+
+    /// A stage's first density and what its steps move: the decoder's, the
+    /// start's on the first level, the last stage's upsampled after it.
+    fn stage_start(
+        &self,
+        stage: usize,
+        level: Option<usize>,
+        grid: &Grid<f64>,
+        hull: &[bool],
+    ) -> Result<(Grid<f64>, Params)> {
+        let settings = self.settings;
+        Ok(match (stage, level) {
+            (0, None) => decoder_start(grid, hull, settings)?,
             (_, None) => unreachable!("the decoder's stage is the first"),
             (0, Some(_)) => {
-                let shape = start_shape(&grid, &hull, &scene.cameras, &photographs, settings.start_shape);
-                voxel_params(start_density(&grid, &shape, settings.start_depth), &hull, settings)
+                let shape = start_shape(grid, hull, &self.scene.cameras, &self.photographs, settings.start_shape);
+                voxel_params(start_density(grid, &shape, settings.start_depth), hull, settings)
             }
-            (_, Some(_)) => voxel_params(upsample(&scene.density, &grid, &hull), &hull, settings),
-        };
-        let support =
-            Grid::new(grid.lo, grid.hi, grid.shape, hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect());
-        for update in 0..updates {
-            scene.density = density.clone();
-            if update % settings.refit_every == 0 {
-                if let (true, true, None, Some(rendered)) = (settings.align, stage > 0, fixed, &last) {
-                    align_cameras(&mut scene.cameras, &mut offsets, &mut zooms, settings.zoom, rendered, &images);
-                }
-                let targets = censored(&images, last.as_deref(), threshold, &gains);
-                let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
-                if settings.gains && stage > 0 {
-                    fit_gains(&mut gains, &weights_of(&scene), &basis, &targets);
-                    images = photographs.iter().zip(&gains).map(|(p, g)| p.map(|v| v / g)).collect();
-                }
-                if settings.lights > 0 && stage > 0 && settings.model.lit() {
-                    place_lights(&mut scene, &targets, &basis, settings.lights, ambient, &mut damping, &mut renders);
-                }
-            }
-            scene.render.seed = settings.seed.wrapping_add(renders);
-            renders += 1;
-            let frozen = Frozen::new(&scene, Some(&support));
-            let targets = censored(&images, Some(&frozen.images), threshold, &gains);
-            let reverse = reverse_gradient(&frozen, &targets, Subset::full());
-            last = Some(frozen.images.clone());
-            let (smooth, smooth_grad) = smoothness(&density, &hull, settings.smoothness, smoothness_axes);
-            let (sparse, sparse_grad) = sparsity(&density, &hull, settings.sparsity);
-            let grad: Vec<f64> = (0..density.len())
-                .map(|v| if hull[v] { reverse.grad[v] + smooth_grad[v] + sparse_grad[v] } else { 0.0 })
-                .collect();
-            if grad.iter().any(|g| !g.is_finite()) {
-                return Err(Error(format!("stage {stage}, update {update}: the gradient is not finite")));
-            }
-            params.step(&mut density, &hull, &grad);
-            let row = FitRow {
-                level: stage,
-                update,
-                image_mse: reverse.loss,
-                smoothness: smooth,
-                sparsity: sparse,
-                seconds: start.elapsed().as_secs_f64(),
-            };
-            progress(&row);
-            log.push(row);
-        }
-        if level.is_none() && !density.data.iter().any(|&d| d > 0.0) {
-            return Err(Error("the decoder's fit went to 0 everywhere in the hull: try another seed".into()));
-        }
-        scene.density = density;
+            (_, Some(_)) => voxel_params(upsample(&self.scene.density, grid, hull), hull, settings),
+        })
     }
-    let targets = censored(&images, last.as_deref(), threshold, &gains);
-    let basis = fit_lights(&mut scene, &targets, ambient, &mut renders)?;
-    let light_share = if settings.model.lit() { light_share(&basis, &weights_of(&scene)) } else { None };
-    let seconds = start.elapsed().as_secs_f64();
-    Ok(Fit { scene, settings: settings.clone(), offsets, zooms, gains, log, light_share, seconds })
+
+    /// The cameras aligned (from the second stage on, without a rig), then
+    /// the lights' intensities and the emission, the gains, and the lights' places.
+    fn refit(&mut self, stage: usize) -> Result<()> {
+        let settings = self.settings;
+        if let (true, true, None, Some(rendered)) = (settings.align, stage > 0, self.fixed, &self.last) {
+            align_cameras(
+                &mut self.scene.cameras,
+                &mut self.offsets,
+                &mut self.zooms,
+                settings.zoom,
+                rendered,
+                &self.images,
+            );
+        }
+        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
+        let basis = fit_lights(&mut self.scene, &targets, self.ambient, &mut self.renders)?;
+        if settings.gains && stage > 0 {
+            fit_gains(&mut self.gains, &weights_of(&self.scene), &basis, &targets);
+            self.images = self.photographs.iter().zip(&self.gains).map(|(p, g)| p.map(|v| v / g)).collect();
+        }
+        if settings.lights > 0 && stage > 0 && settings.model.lit() {
+            let (ambient, lights) = (self.ambient, settings.lights);
+            place_lights(&mut self.scene, &targets, &basis, lights, ambient, &mut self.damping, &mut self.renders);
+        }
+        Ok(())
+    }
+
+    /// One update's render of the scene as it is: its images' gradient with
+    /// the priors' (0 outside the hull), and its row of the log.
+    fn gradient(
+        &mut self,
+        stage: usize,
+        update: usize,
+        density: &Grid<f64>,
+        hull: &[bool],
+        support: &Grid<f64>,
+    ) -> Result<(Vec<f64>, FitRow)> {
+        let settings = self.settings;
+        self.scene.render.seed = settings.seed.wrapping_add(self.renders);
+        self.renders += 1;
+        let frozen = Frozen::new(&self.scene, Some(support));
+        let targets = censored(&self.images, Some(&frozen.images), self.threshold, &self.gains);
+        let reverse = reverse_gradient(&frozen, &targets, Subset::full());
+        self.last = Some(frozen.images.clone());
+        let (smooth, smooth_grad) = smoothness(density, hull, settings.smoothness, self.smoothness_axes);
+        let (sparse, sparse_grad) = sparsity(density, hull, settings.sparsity);
+        let grad: Vec<f64> = (0..density.len())
+            .map(|v| if hull[v] { reverse.grad[v] + smooth_grad[v] + sparse_grad[v] } else { 0.0 })
+            .collect();
+        if grad.iter().any(|g| !g.is_finite()) {
+            return Err(Error(format!("stage {stage}, update {update}: the gradient is not finite")));
+        }
+        let row = FitRow {
+            level: stage,
+            update,
+            image_mse: reverse.loss,
+            smoothness: smooth,
+            sparsity: sparse,
+            seconds: 0.0,
+        };
+        Ok((grad, row))
+    }
+
+    /// The lights and emission fitted once more to the last density: the fit.
+    fn finish(mut self) -> Result<Fit> {
+        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
+        let basis = fit_lights(&mut self.scene, &targets, self.ambient, &mut self.renders)?;
+        let model = self.settings.model;
+        let light_share = if model.lit() { light_share(&basis, &weights_of(&self.scene)) } else { None };
+        Ok(Fit {
+            scene: self.scene,
+            settings: self.settings.clone(),
+            offsets: self.offsets,
+            zooms: self.zooms,
+            gains: self.gains,
+            log: self.log,
+            light_share,
+            seconds: self.start.elapsed().as_secs_f64(),
+        })
+    }
 }
 
 /// Moves every camera's principal point (and with `zoom` scales its focal
