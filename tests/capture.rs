@@ -506,3 +506,61 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     let quality = std::fs::read_to_string(out.join("fit_quality.csv")).unwrap();
     assert_eq!(quality.lines().filter(|l| l.contains(",training,")).count(), 2, "{quality}");
 }
+
+/// `made_capture` writes, from a capture's cameras and box, a capture that
+/// reads back with the same cameras and box and the frames asked for: smoke
+/// in the middle of every view, black at its corners (the threshold), and
+/// the ambient term's share changing the images. A bad share is refused
+/// before any output.
+#[test]
+fn made_capture_writes_a_capture_that_reads_back() {
+    let dir = temp_dir("made_capture");
+    let cam = |name: &str, x: f64, z: f64| {
+        let folder = dir.join(name);
+        std::fs::create_dir_all(&folder).unwrap();
+        write_png(&folder.join("0.png"), 48, 64, false, |_, _| 0);
+        json!({"file_name": name, "frame_num": 1, "camera_angle_x": 0.9, "camera_hw": [64, 48], "transform_matrix": looking_at_origin(x, z)})
+    };
+    let calib = json!({
+        "train_videos": [cam("left", 2.0, 0.0), cam("right", 0.0, 2.0)],
+        "test_videos": [cam("middle", 1.414, 1.414)],
+        "voxel_matrix": UNIT_BOX, "voxel_scale": [0.8, 1.0, 0.8],
+    });
+    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
+    let out = dir.join("made");
+    let run = |shares: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_made_capture"))
+            .arg("--like")
+            .arg(&dir)
+            .args(["--frames", "2", "--res", "8", "--ambient-shares", shares])
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let bad = run("0,1.5");
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("--ambient-shares: 1.5"), "{err}");
+    assert!(!out.exists(), "a bad share is refused before any output");
+    let ok = run("0,1");
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let like = calibration::load(&dir.join("info.json")).unwrap();
+    let mut middles = Vec::new();
+    for share in ["ambient_0", "ambient_100"] {
+        let made = calibration::load(&out.join(share).join("info.json")).unwrap();
+        assert_eq!(made.smoke_box, like.smoke_box);
+        assert_eq!(made.views.len(), 3);
+        for (m, l) in made.views.iter().zip(&like.views) {
+            assert_eq!((&m.name, &m.camera, m.held_out, m.frames.count()), (&l.name, &l.camera, l.held_out, 2));
+            let images = frames::read(m, &[0, 1]).unwrap();
+            for image in &images {
+                assert_eq!((image.width, image.height), (48, 64));
+                assert_eq!(image.data[0], 0.0, "{share} {}: a corner is not black", m.name);
+                assert!(image.data.iter().all(|&v| v == 0.0 || v > 8.0 / 255.0), "codes up to 8 must be 0");
+            }
+            middles.push(images[0].data[32 * 48 + 24]);
+        }
+    }
+    assert!(middles.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {middles:?}");
+    assert_ne!(middles[..3], middles[3..], "the ambient term's share changed nothing");
+}
