@@ -359,6 +359,7 @@ mod tests {
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
                 "gains" => settings.gains,
+                "one_gain" => !settings.gains,
                 "log_density" => settings.log_density,
                 "additive" => !settings.log_density,
                 n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],
