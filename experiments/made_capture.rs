@@ -91,6 +91,9 @@ fn run(args: Args) -> Result<()> {
     let info = calibration::locate(&args.like);
     let capture = calibration::load(&info)?;
     let (lo, hi) = capture.grid_box()?;
+    if let Some(small) = capture.views.iter().find(|v| v.camera.width.min(v.camera.height) < RENDER_FACTOR) {
+        return Err(Error(format!("camera {}: images of at least {RENDER_FACTOR} pixels a side", small.name)));
+    }
     let run = Run::start(&args.out)?;
     let training: Vec<bool> = capture.views.iter().map(|v| !v.held_out).collect();
     let folders: Vec<PathBuf> =
@@ -107,7 +110,7 @@ fn run(args: Args) -> Result<()> {
                 let image: Vec<f64> =
                     lit[c].data.iter().zip(&ambient[c].data).map(|(l, a)| w_lit * l + w_ambient * a).collect();
                 let (width, height) = (view.camera.width, view.camera.height);
-                let full = repeated(&image, lit[c].width, width, height);
+                let full = repeated(&image, (lit[c].width, lit[c].height), width, height);
                 let codes = photograph(&full, args.seed, frame, c);
                 let dir = folder.join(&view.name);
                 std::fs::create_dir_all(&dir)?;
@@ -198,10 +201,16 @@ fn weights(lit: &[Image], ambient: &[Image], training: &[bool], share: f64) -> (
     (w_lit * BRIGHTEST / brightest, w_ambient * BRIGHTEST / brightest)
 }
 
-/// `image` (`small_width` pixels a row) at `width` x `height`, each pixel repeated.
-fn repeated(image: &[f64], small_width: usize, width: usize, height: usize) -> Vec<f64> {
+/// `image` (`small_width` x `small_height`) at `width` x `height`, each
+/// pixel repeated (an odd last row or column repeats the one before).
+fn repeated(image: &[f64], small: (usize, usize), width: usize, height: usize) -> Vec<f64> {
+    let (small_width, small_height) = small;
     (0..width * height)
-        .map(|i| image[(i / width) / RENDER_FACTOR * small_width + (i % width) / RENDER_FACTOR])
+        .map(|i| {
+            let x = ((i % width) / RENDER_FACTOR).min(small_width - 1);
+            let y = ((i / width) / RENDER_FACTOR).min(small_height - 1);
+            image[y * small_width + x]
+        })
         .collect()
 }
 
