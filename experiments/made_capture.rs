@@ -11,8 +11,9 @@
 //!
 //! The truth, fixed before any fit: each frame is the built-in plume of
 //! seed `--seed + frame` stretched over the capture's smoke box, at an
-//! optical depth of [`DEPTH`] across it; albedo 1 and g 0.6 (what the fit
-//! assumes), [`ORDERS`] orders; three lights ([`studio_lights`]) at places
+//! optical depth across it of the fit's start (`FitSettings::start_depth`,
+//! 1, by the fit's own `start_density`); the albedo and g the fit assumes
+//! (1 and 0.6), [`ORDERS`] orders; three lights ([`studio_lights`]) at places
 //! the fit's candidates do not hold; the images scaled once, on frame 0, so
 //! that the brightest of the smoke's pixels reach [`BRIGHTEST`]; the
 //! photographs' noise ([`NOISE_CODES`]), 8-bit codes, and codes up to 8 set
@@ -20,6 +21,8 @@
 
 use clap::Parser;
 use dualphoton::capture::calibration;
+use dualphoton::capture::fit::start_density;
+use dualphoton::capture::settings::FitSettings;
 use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
@@ -34,8 +37,6 @@ use serde::Serialize;
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// Optical depth across the plume: the fit's start (`FitSettings::start_depth`).
-const DEPTH: f64 = 1.0;
 /// Scattering orders of the truth (the fit uses 3).
 const ORDERS: u32 = 8;
 /// Photons of the truth's renders of the lights: their noise below the photographs'.
@@ -128,15 +129,12 @@ fn run(args: Args) -> Result<()> {
 /// Frame `frame`'s scene: the plume on the smoke box, the three lights, every camera.
 fn truth(args: &Args, frame: usize, lo: Vec3, hi: Vec3, cameras: Vec<dualphoton::scene::Camera>) -> Scene {
     let unit = plume(args.res, args.seed.wrapping_add(frame as u64));
-    let occupied: Vec<f64> = unit.data.iter().copied().filter(|&d| d > 0.0).collect();
-    let mean = occupied.iter().sum::<f64>() / occupied.len().max(1) as f64;
-    let grid = Grid::new(lo, hi, unit.shape, unit.data.clone());
-    let v = grid.voxel_size();
-    let chord = (occupied.len().max(1) as f64).cbrt() * (v.x * v.y * v.z).cbrt();
-    let density = grid.map(|d| d * DEPTH / chord / mean.max(f64::MIN_POSITIVE));
+    let grid = Grid::new(lo, hi, unit.shape, unit.data);
+    let fit = FitSettings::default();
+    let density = start_density(&grid, &grid.data, fit.start_depth);
     Scene {
         density,
-        medium: Medium { sigma_t_scale: 1.0, albedo: 1.0, g: 0.6, max_order: ORDERS, emission: 0.0 },
+        medium: Medium { sigma_t_scale: 1.0, albedo: fit.albedo, g: fit.g, max_order: ORDERS, emission: 0.0 },
         lights: studio_lights(&lo, &hi),
         cameras,
         render: RenderSettings {

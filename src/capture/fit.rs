@@ -575,8 +575,9 @@ fn start_shape(grid: &Grid<f64>, hull: &[bool], cameras: &[Camera], photos: &[Im
 
 /// The start: `shape` scaled so that its mean over the voxels where it is
 /// positive is an optical depth of `depth` across their mean chord (their
-/// volume over their largest cross-section, roughly).
-fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
+/// volume over their largest cross-section, roughly). A made capture's
+/// truth is set to the fit's start depth by it too.
+pub fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
     let rho = depth_scale(grid, shape, depth);
     Grid::new(grid.lo, grid.hi, grid.shape, shape.iter().map(|&s| s * rho).collect())
 }
