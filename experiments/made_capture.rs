@@ -13,8 +13,8 @@
 //! seed `--seed + frame` stretched over the capture's smoke box, at an
 //! optical depth across it of the fit's start (`FitSettings::start_depth`,
 //! 1, by the fit's own `start_density`); the albedo and g the fit assumes
-//! (1 and 0.6), [`ORDERS`] orders; three lights ([`studio_lights`]) at places
-//! the fit's candidates do not hold; the images scaled once, on frame 0, so
+//! (1 and 0.6), [`ORDERS`] orders; three lights ([`Lights`]: by default at
+//! places the fit's candidates do not hold); the images scaled once, on frame 0, so
 //! that the brightest of the smoke's pixels reach [`BRIGHTEST`]; the
 //! photographs' noise ([`NOISE_CODES`]), 8-bit codes, and codes up to 8 set
 //! to 0, as ScalarFlow's processing left them.
@@ -22,6 +22,7 @@
 use clap::Parser;
 use dualphoton::capture::calibration;
 use dualphoton::capture::fit::start_density;
+use dualphoton::capture::lighting::candidate_lights;
 use dualphoton::capture::settings::FitSettings;
 use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
@@ -69,12 +70,58 @@ struct Args {
     /// Grid edge of the plume.
     #[arg(long, default_value_t = 64)]
     res: usize,
+    /// Where the three lights are.
+    #[arg(long, value_enum, default_value_t = Lights::Between)]
+    lights: Lights,
     /// Seed of the plumes, the renders and the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Output directory: per share, info.json and a folder of PNG frames per camera.
     #[arg(long)]
     out: PathBuf,
+}
+
+/// The truth's three lights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+enum Lights {
+    /// 35 degrees above the box's centre at azimuths 30, 150 and 270
+    /// degrees, 1.5 box diagonals away: between the fit's candidates
+    /// (`capture::lighting::candidate_lights`: every 60 degrees from 0, 20
+    /// degrees up, 2 diagonals away), so the fit cannot hold them exactly.
+    /// ScalarFlow's central camera looks almost into the one at 270 (18
+    /// degrees of scattering, 31 for the nearest other camera).
+    Between,
+    /// The fit's candidates at azimuths 0, 120 and 240 degrees: the fit
+    /// can hold them exactly, and on ScalarFlow's cameras the central one's
+    /// strongest forward scattering (31 degrees) lies between two other
+    /// cameras' (5 and 21).
+    Candidates,
+}
+
+impl Lights {
+    fn place(self, lo: &Vec3, hi: &Vec3) -> Vec<Light> {
+        match self {
+            Lights::Between => {
+                let centre = (lo + hi) / 2.0;
+                let distance = 1.5 * (hi - lo).norm();
+                let el = 35f64.to_radians();
+                [30f64, 150.0, 270.0]
+                    .iter()
+                    .map(|az| {
+                        let az = az.to_radians();
+                        let d = Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
+                        Light { position: centre + d * distance, intensity: 1.0 }
+                    })
+                    .collect()
+            }
+            Lights::Candidates => candidate_lights(lo, hi)
+                .into_iter()
+                .step_by(2)
+                .take(3)
+                .map(|light| Light { intensity: 1.0, ..light })
+                .collect(),
+        }
+    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -135,7 +182,7 @@ fn truth(args: &Args, frame: usize, lo: Vec3, hi: Vec3, cameras: Vec<dualphoton:
     Scene {
         density,
         medium: Medium { sigma_t_scale: 1.0, albedo: fit.albedo, g: fit.g, max_order: ORDERS, emission: 0.0 },
-        lights: studio_lights(&lo, &hi),
+        lights: args.lights.place(&lo, &hi),
         cameras,
         render: RenderSettings {
             photons: PHOTONS,
@@ -144,24 +191,6 @@ fn truth(args: &Args, frame: usize, lo: Vec3, hi: Vec3, cameras: Vec<dualphoton:
             ..RenderSettings::default()
         },
     }
-}
-
-/// Three lights 35 degrees above the box's centre at azimuths 30, 150 and
-/// 270 degrees, 1.5 box diagonals away: between the fit's candidates
-/// (`capture::lighting::candidate_lights`: every 60 degrees from 0, 20
-/// degrees up, 2 diagonals away), so the fit cannot hold them exactly.
-fn studio_lights(lo: &Vec3, hi: &Vec3) -> Vec<Light> {
-    let centre = (lo + hi) / 2.0;
-    let distance = 1.5 * (hi - lo).norm();
-    let el = 35f64.to_radians();
-    [30f64, 150.0, 270.0]
-        .iter()
-        .map(|az| {
-            let az = az.to_radians();
-            let d = Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
-            Light { position: centre + d * distance, intensity: 1.0 }
-        })
-        .collect()
 }
 
 /// The images of the lights alone, or of the ambient term alone (emission 1, the lights off).
