@@ -510,8 +510,8 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
 /// `made_capture` writes, from a capture's cameras and box, a capture that
 /// reads back with the same cameras and box and the frames asked for: smoke
 /// in the middle of every view, black at its corners (the threshold), and
-/// the ambient term's share changing the images. A bad share is refused
-/// before any output.
+/// the ambient term's share and the lights' places changing the images. A
+/// bad share is refused before any output.
 #[test]
 fn made_capture_writes_a_capture_that_reads_back() {
     let dir = temp_dir("made_capture");
@@ -529,16 +529,17 @@ fn made_capture_writes_a_capture_that_reads_back() {
     });
     std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
     let out = dir.join("made");
-    let run = |shares: &str| {
+    let run_to = |out: &std::path::Path, shares: &str, lights: &str| {
         std::process::Command::new(env!("CARGO_BIN_EXE_made_capture"))
             .arg("--like")
             .arg(&dir)
-            .args(["--frames", "2", "--res", "8", "--ambient-shares", shares])
+            .args(["--frames", "2", "--res", "8", "--ambient-shares", shares, "--lights", lights])
             .arg("--out")
-            .arg(&out)
+            .arg(out)
             .output()
             .unwrap()
     };
+    let run = |shares: &str| run_to(&out, shares, "between");
     let bad = run("0,1.5");
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("--ambient-shares: 1.5"), "{err}");
@@ -564,4 +565,12 @@ fn made_capture_writes_a_capture_that_reads_back() {
     }
     assert!(middles.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {middles:?}");
     assert_ne!(middles[..3], middles[3..], "the ambient term's share changed nothing");
+    // The lights on the fit's candidates light the same smoke otherwise.
+    let moved = dir.join("made_candidates");
+    let ok = run_to(&moved, "0", "candidates");
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let made = calibration::load(&moved.join("ambient_0").join("info.json")).unwrap();
+    let lit: Vec<f64> = made.views.iter().map(|m| frames::read(m, &[0]).unwrap()[0].data[31 * 47 + 23]).collect();
+    assert!(lit.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {lit:?}");
+    assert_ne!(lit[..], middles[..3], "the lights' places changed nothing");
 }

@@ -233,7 +233,8 @@ fn smoke_box(matrix: &[[f64; 4]], scale: &Value) -> Result<(Vec3, Vec3)> {
     }
     // The grid is axis-aligned: a box turned against the world axes would not fit it.
     let volume = |v: Vec3| v.x * v.y * v.z;
-    if !(volume(hi - lo) <= 1.01 * s[0] * s[1] * s[2]) {
+    let (spanned, given) = (volume(hi - lo), 1.01 * s[0] * s[1] * s[2]);
+    if spanned.partial_cmp(&given).is_none_or(|o| o.is_gt()) {
         bail!("voxel_matrix: the smoke box is turned against the world axes, the grid is not: remove it, give --box");
     }
     Ok((lo, hi))

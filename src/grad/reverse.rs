@@ -260,44 +260,11 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     });
 
     // (1b) Light-depth adjoints -> density adjoints, back along each node's shadow ray.
-    if let (Some(per_light), Some(light_depth)) = (depths, frozen.light_depth()) {
-        for (l, primal) in per_light.iter().enumerate().filter_map(|(l, g)| g.as_ref().map(|g| (l, g))) {
-            // The light's adjoints in place (nothing reads them after), the voxels' apart.
-            let (density_adjoint, rest) = total.split_at_mut(first_depth + l * depth_nodes);
-            let adjoint = &mut rest[..depth_nodes];
-            light_depth.pad_adjoints(adjoint);
-            let active: Vec<usize> = light_depth.nodes_where(|v| adjoint[v] != 0.0);
-            sweep(&active, voxels, &mut density_adjoint[..voxels], |scratch, v| {
-                let add = &mut |voxel: usize, a| scratch.add(voxel as u32, a);
-                light_depth.adjoint(frozen.marcher(), density, l, v, primal.data[v], adjoint[v], add);
-            });
-        }
+    if let Some(per_light) = depths {
+        depth_adjoints(frozen, per_light, &mut total, first_depth, depth_nodes);
     }
-
     // (2) Estimate-node adjoints -> photon power adjoints.
-    let power_adjoint: Vec<f64> = match frozen.kernel() {
-        None => vec![],
-        Some((geometry, kernel)) => {
-            let m = &scene.medium;
-            (0..frozen.photons.len())
-                .into_par_iter()
-                .map(|p| {
-                    // The adjoint of the deposit in `SplatGeometry::estimate_with`.
-                    let mut adj = 0.0;
-                    for (c, cam) in scene.cameras.iter().enumerate().take(targets.len()) {
-                        let Some(phase) = phase_towards(&frozen.photons[p], &cam.position, m.g) else {
-                            continue;
-                        };
-                        let node_adj = &total[voxels + c * nodes..voxels + (c + 1) * nodes];
-                        let s: f64 = kernel.deposits(p).map(|(n, w)| node_adj[geometry.slot(n)] * w).sum();
-                        adj += s * m.albedo * phase;
-                    }
-                    adj
-                })
-                .collect()
-        }
-    };
-
+    let power_adjoint = power_adjoints(frozen, &total[voxels..], nodes, targets.len());
     // (3) Photon paths.
     if !power_adjoint.is_empty() {
         let (paths, path_scale) = draw_subset(frozen.paths(), subset.paths, &mut rng);
@@ -314,6 +281,61 @@ pub fn reverse_gradient(frozen: &Frozen, targets: &[Image], subset: Subset) -> R
     }
     total.truncate(voxels);
     Reverse { loss, grad: total, peak_tape_bytes: peak }
+}
+
+/// Adds to the voxels' adjoints (the start of `total`) the adjoints of each
+/// light's depth grid (its block of `depth_nodes` from `first_depth`), sent
+/// back along each node's shadow ray: the depths are linear in the density.
+fn depth_adjoints(
+    frozen: &Frozen,
+    per_light: &[Option<Grid<f64>>],
+    total: &mut [f64],
+    first_depth: usize,
+    depth_nodes: usize,
+) {
+    let Some(light_depth) = frozen.light_depth() else {
+        return;
+    };
+    let density = &frozen.scene.density;
+    let voxels = density.len();
+    for (l, primal) in per_light.iter().enumerate().filter_map(|(l, g)| g.as_ref().map(|g| (l, g))) {
+        // The light's adjoints in place (nothing reads them after), the voxels' apart.
+        let (density_adjoint, rest) = total.split_at_mut(first_depth + l * depth_nodes);
+        let adjoint = &mut rest[..depth_nodes];
+        light_depth.pad_adjoints(adjoint);
+        let active: Vec<usize> = light_depth.nodes_where(|v| adjoint[v] != 0.0);
+        sweep(&active, voxels, &mut density_adjoint[..voxels], |scratch, v| {
+            let add = &mut |voxel: usize, a| scratch.add(voxel as u32, a);
+            light_depth.adjoint(frozen.marcher(), density, l, v, primal.data[v], adjoint[v], add);
+        });
+    }
+}
+
+/// Each photon's power adjoint from the adjoints of the estimate's nodes
+/// (`node_adjoints`: `nodes` per camera, the first `cameras` cameras): the
+/// adjoint of the deposit in `SplatGeometry::estimate_with`, linear in the
+/// powers with the frozen kernel's weights. Empty without photons.
+fn power_adjoints(frozen: &Frozen, node_adjoints: &[f64], nodes: usize, cameras: usize) -> Vec<f64> {
+    let Some((geometry, kernel)) = frozen.kernel() else {
+        return vec![];
+    };
+    let scene = frozen.scene;
+    let m = &scene.medium;
+    (0..frozen.photons.len())
+        .into_par_iter()
+        .map(|p| {
+            let mut adj = 0.0;
+            for (c, cam) in scene.cameras.iter().enumerate().take(cameras) {
+                let Some(phase) = phase_towards(&frozen.photons[p], &cam.position, m.g) else {
+                    continue;
+                };
+                let node_adj = &node_adjoints[c * nodes..(c + 1) * nodes];
+                let s: f64 = kernel.deposits(p).map(|(n, w)| node_adj[geometry.slot(n)] * w).sum();
+                adj += s * m.albedo * phase;
+            }
+            adj
+        })
+        .collect()
 }
 
 #[cfg(test)]
