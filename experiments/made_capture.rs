@@ -99,6 +99,7 @@ enum Lights {
 }
 
 impl Lights {
+    /// The three lights about the box `lo`..`hi`, each of intensity 1.
     fn place(self, lo: &Vec3, hi: &Vec3) -> Vec<Light> {
         match self {
             Lights::Between => {
@@ -114,6 +115,7 @@ impl Lights {
                     })
                     .collect()
             }
+            // Every other one of the six candidates around the box: azimuths 0, 120, 240.
             Lights::Candidates => candidate_lights(lo, hi)
                 .into_iter()
                 .step_by(2)
