@@ -22,7 +22,7 @@
 use clap::Parser;
 use dualphoton::capture::calibration;
 use dualphoton::capture::fit::start_density;
-use dualphoton::capture::lighting::candidate_lights;
+use dualphoton::capture::lighting::{candidate_lights, direction};
 use dualphoton::capture::settings::FitSettings;
 use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
@@ -105,14 +105,9 @@ impl Lights {
             Lights::Between => {
                 let centre = (lo + hi) / 2.0;
                 let distance = 1.5 * (hi - lo).norm();
-                let el = 35f64.to_radians();
-                [30f64, 150.0, 270.0]
+                [30.0, 150.0, 270.0]
                     .iter()
-                    .map(|az| {
-                        let az = az.to_radians();
-                        let d = Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
-                        Light { position: centre + d * distance, intensity: 1.0 }
-                    })
+                    .map(|&az| Light { position: centre + direction(az, 35.0) * distance, intensity: 1.0 })
                     .collect()
             }
             // Every other one of the six candidates around the box: azimuths 0, 120, 240.

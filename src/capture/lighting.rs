@@ -22,15 +22,18 @@ use crate::scene::{Light, Scene};
 pub fn candidate_lights(lo: &Vec3, hi: &Vec3) -> Vec<Light> {
     let centre = (lo + hi) / 2.0;
     let distance = 2.0 * (hi - lo).norm();
-    let mut dirs: Vec<Vec3> = (0..6)
-        .map(|k| {
-            let (az, el) = ((k as f64 * 60.0).to_radians(), 20f64.to_radians());
-            Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin())
-        })
-        .collect();
+    let mut dirs: Vec<Vec3> = (0..6).map(|k| direction(k as f64 * 60.0, 20.0)).collect();
     dirs.push(Vec3::new(0.0, 1.0, 0.0));
     dirs.push(Vec3::new(0.0, -1.0, 0.0));
     dirs.into_iter().map(|d| Light { position: centre + d * distance, intensity: 0.0 }).collect()
+}
+
+/// The unit direction at `azimuth` degrees about the up axis +y (0 at +x,
+/// 90 at +z) and `elevation` degrees above the horizontal: where the
+/// candidates, and a made capture's lights, are placed.
+pub fn direction(azimuth: f64, elevation: f64) -> Vec3 {
+    let (az, el) = (azimuth.to_radians(), elevation.to_radians());
+    Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin())
 }
 
 /// One render per light of `scene` (intensity 1, no emission) and one of
