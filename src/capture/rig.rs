@@ -5,15 +5,15 @@
 //! a thin column of smoke near the image's edge a camera's magnification
 //! and its vertical offset explain the same pixels. A rig fits them once,
 //! on calibration frames spread over the clip (frames nobody reports,
-//! [`calibration_frames`]), each fitted under emission-absorption (the
-//! cheapest image model: the alignment is the cameras', not the model's,
-//! so every model then sees the same cameras), and keeps per camera the
+//! [`calibration_frames`]), each fitted under one image model
+//! (emission-absorption by default, the cheapest: the alignment is the
+//! cameras', so every model then sees the same cameras), and keeps per camera the
 //! median over those frames. The held-out camera is not part of it.
 
 use super::align::{take_out_shared, Corrections};
 use super::fit::{fit, Fit};
 use super::observe::observe;
-use super::settings::{FitSettings, ImageModel};
+use super::settings::FitSettings;
 use super::Capture;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
@@ -72,7 +72,7 @@ impl Rig {
 
     /// Fits the rig of `training` cameras of `capture` on its
     /// [`calibration_frames`], each with `settings` (their per-frame
-    /// alignment on) under emission-absorption. `progress` hears each frame.
+    /// alignment on) under their `rig_model`. `progress` hears each frame.
     pub fn fit(
         capture: &Capture,
         training: &[usize],
@@ -83,7 +83,7 @@ impl Rig {
         let smoke_box = capture.grid_box()?;
         let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
         let settings = FitSettings {
-            model: ImageModel::EmissionAbsorption,
+            model: settings.rig_model,
             align: true,
             shared_alignment: false,
             factor: settings.rig_factor.unwrap_or(settings.factor),

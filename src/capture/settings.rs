@@ -148,6 +148,11 @@ pub struct FitSettings {
     /// frames' fits, 1/`rig_factor` of the capture's; none: `factor`. On the
     /// settings study's frames 4 gained 0.07 dB at almost 4 times the rig's time.
     pub rig_factor: Option<usize>,
+    /// With `shared_alignment`, the image model the calibration frames are
+    /// fitted under. Emission-absorption by default: the cheapest, and every
+    /// model then sees the same cameras. Where the lights shape the images,
+    /// its misfit may move the cameras (a study setting).
+    pub rig_model: ImageModel,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
     /// carved through the aligned cameras with this margin. Before, the
@@ -239,6 +244,7 @@ impl Default for FitSettings {
             shared_alignment: true,
             rig_frames: 3,
             rig_factor: None,
+            rig_model: ImageModel::EmissionAbsorption,
             aligned_margin: 20.0,
             lights: 0,
             gains: true,
@@ -379,6 +385,7 @@ mod tests {
                 "geometric_mean" => settings.start_shape == StartShape::GeometricMean,
                 n if n.starts_with("rig_frames_") => settings.rig_frames.to_string() == n["rig_frames_".len()..],
                 n if n.starts_with("rig_factor_") => settings.rig_factor == n["rig_factor_".len()..].parse().ok(),
+                "rig_multiple" => settings.rig_model == ImageModel::Multiple,
                 n if n.starts_with("orders_") => settings.orders.to_string() == n["orders_".len()..],
                 n if n.starts_with("photons_") => settings.photons.to_string() == n["photons_".len()..],
                 n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],
