@@ -21,7 +21,7 @@
 
 use clap::Parser;
 use dualphoton::capture::calibration;
-use dualphoton::capture::fit::start_density;
+use dualphoton::capture::density::start_density;
 use dualphoton::capture::lighting::{candidate_lights, direction};
 use dualphoton::capture::settings::FitSettings;
 use dualphoton::data::plume::plume;

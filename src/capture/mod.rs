@@ -10,7 +10,8 @@
 //! - [`align`] finds how far a photograph must move to agree with a render
 //!   (a camera's principal point, corrected).
 //! - [`fit`] fits one frame: the density, the lights' intensities and the
-//!   emission, under one of three image models.
+//!   emission, under one of three image models; [`density`] is what its
+//!   steps move and where it starts.
 //! - [`lighting`] is the fit's lighting and the cameras' gains: candidate
 //!   lights and an ambient term, fitted by least squares on their renders;
 //!   [`lights`] gives the image's derivatives in a light's place.
@@ -22,6 +23,7 @@
 
 pub mod align;
 pub mod calibration;
+pub mod density;
 pub mod fit;
 pub mod frame;
 pub mod frames;
