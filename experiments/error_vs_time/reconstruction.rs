@@ -7,7 +7,7 @@ use dualphoton::grad::Estimator;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::recon::methods::Method;
 use dualphoton::recon::problem::{paper_problem, PaperProblem, Problem};
-use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings};
+use dualphoton::recon::reconstruct::{reconstruct, ReconstructSettings, Reconstruction};
 use dualphoton::scene::rig;
 use std::fmt::Write as _;
 
@@ -40,24 +40,7 @@ pub fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut Strin
         args.budget, args.refine_budget, args.budget, args.refine_budget
     );
     for &estimator in estimators {
-        // The budgets stop both parts; the update counts are only caps.
-        let mut method = Method::paper().seeded(args.seed);
-        method.train.gradient.estimator = estimator;
-        (method.train.iterations, method.train.time_budget) = (UPDATE_CAP, Some(args.budget));
-        method.refine.updates = if args.refine_budget > 0.0 { UPDATE_CAP } else { 0 };
-        method.refine.time_budget = (args.refine_budget > 0.0).then_some(args.refine_budget);
-        let settings = ReconstructSettings::new(method, target_photons, 8);
-        let result = reconstruct(&problem, &settings, &mut |p| {
-            eprint!(
-                "\r{}: update {}  {:.0}/{:.0} s  eps {:.3}   ",
-                estimator.name(),
-                p.row.iteration + 1,
-                p.row.wall_s,
-                args.budget + args.refine_budget,
-                p.row.density_rel_l1
-            );
-        })?;
-        eprintln!();
+        let result = within_budgets(&problem, args, estimator, target_photons)?;
         let rows = &result.log;
         let (trained, refined) = (result.trained, rows.len() - result.trained);
         for (i, r) in rows.iter().enumerate() {
@@ -100,16 +83,46 @@ pub fn reconstruction(args: &Args, estimators: &[Estimator], summary: &mut Strin
     }
     std::fs::write(args.out.join("reconstruction.csv"), log)?;
     std::fs::write(args.out.join("reconstruction_final.csv"), finals)?;
+    plots(args, &eps_series, &held_series)?;
+    Ok(())
+}
+
+/// `estimator` trains with the main job's method for `args.budget` seconds,
+/// then the refinement runs for `args.refine_budget`: the budgets stop both
+/// parts, the update counts are only caps.
+fn within_budgets(problem: &Problem, args: &Args, estimator: Estimator, target_photons: u64) -> Result<Reconstruction> {
+    let mut method = Method::paper().seeded(args.seed);
+    method.train.gradient.estimator = estimator;
+    (method.train.iterations, method.train.time_budget) = (UPDATE_CAP, Some(args.budget));
+    method.refine.updates = if args.refine_budget > 0.0 { UPDATE_CAP } else { 0 };
+    method.refine.time_budget = (args.refine_budget > 0.0).then_some(args.refine_budget);
+    let settings = ReconstructSettings::new(method, target_photons, 8);
+    let result = reconstruct(problem, &settings, &mut |p| {
+        eprint!(
+            "\r{}: update {}  {:.0}/{:.0} s  eps {:.3}   ",
+            estimator.name(),
+            p.row.iteration + 1,
+            p.row.wall_s,
+            args.budget + args.refine_budget,
+            p.row.density_rel_l1
+        );
+    })?;
+    eprintln!();
+    Ok(result)
+}
+
+/// The density error and the held-out error against time, one line per estimator.
+fn plots(args: &Args, eps_series: &[Series], held_series: &[Series]) -> Result<()> {
     let axes = |title, y| Axes { title, x: "wall-clock time (s, 2 cores)", y, log_x: false, log_y: true };
     line_chart(
         &args.out.join("reconstruction_epsilon.svg"),
         &axes("Density error against fitting time", "voxel relative L1 error epsilon"),
-        &eps_series,
+        eps_series,
     )?;
     line_chart(
         &args.out.join("reconstruction_held_out.svg"),
         &axes("Held-out camera error against fitting time", "held-out relative RMSE (%, per-update render)"),
-        &held_series,
+        held_series,
     )?;
     Ok(())
 }

@@ -85,14 +85,15 @@ pub struct FitResult {
     pub rel_rmse_oracle_aligned: Option<f64>,
 }
 
-/// The rig in words and a table, for summary.md.
-pub fn rig_note(rig: &Rig) -> String {
+/// The rig, fitted under `model`, in words and a table, for summary.md.
+pub fn rig_note(rig: &Rig, model: ImageModel) -> String {
     let frames: Vec<String> = rig.frames.iter().map(|f| f.to_string()).collect();
     let mut md = format!(
         "\nThe training cameras were aligned once for every frame, on frames {} under \
-         emission-absorption ({:.0} s, once per run): per camera how far its principal point moved \
+         {} ({:.0} s, once per run): per camera how far its principal point moved \
          (pixels of the capture, right and down) and the factor its focal lengths were scaled by.\n\n",
         frames.join(", "),
+        model.name(),
         rig.seconds
     );
     let rows = rig.cameras.iter().map(|c| {

@@ -96,13 +96,7 @@ impl<'a> Frozen<'a> {
         let tracer =
             Tracer { density, medium: &scene.medium, marcher: &photon_marcher, emitters: &emitters, guide: &guide };
         let (photons, flights) = tracer.trace(settings.photons, settings.seed, replayable);
-        let mut path_start = vec![0usize; settings.photons as usize + 1];
-        for p in &photons {
-            path_start[p.path as usize + 1] += 1;
-        }
-        for i in 0..settings.photons as usize {
-            path_start[i + 1] += path_start[i];
-        }
+        let path_start = path_starts(&photons, settings.photons as usize);
         timings.trace = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
@@ -114,15 +108,7 @@ impl<'a> Frozen<'a> {
             (Some(geometry), kernel)
         };
         timings.gather = t.elapsed().as_secs_f64();
-        let first_pixel = scene
-            .cameras
-            .iter()
-            .scan(0u64, |acc, c| {
-                let first = *acc;
-                *acc += c.pixels() as u64;
-                Some(first)
-            })
-            .collect();
+        let first_pixel = first_pixels(&scene.cameras);
         let scale = scene.medium.sigma_t_scale;
         let light_depth = settings
             .shadow_cell_for(density, scale)
@@ -144,30 +130,35 @@ impl<'a> Frozen<'a> {
             images: vec![],
             timings,
         };
-        let (images, depths, gather, shadows, camera) = {
-            let t = Instant::now();
-            let multiple = frozen.multiple_with(|p| frozen.photons[p].power, scene.cameras.len());
-            let gather = t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            let depths = frozen.light_depths(density);
-            let shadows = t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            let rays = frozen.camera_rays(density, None, depths.as_ref());
-            let images = rays
-                .images(&frozen.camera_list(scene.cameras.len(), multiple.as_deref()))
-                .into_iter()
-                .zip(&scene.cameras)
-                .map(|(data, camera)| Image { width: camera.width, height: camera.height, data })
-                .collect();
-            (images, depths, gather, shadows, t.elapsed().as_secs_f64())
-        };
-        frozen.images = images;
-        frozen.depths = depths;
-        frozen.timings.gather += gather;
-        frozen.timings.shadows = shadows;
-        frozen.timings.camera = camera;
+        frozen.render_primal();
         frozen.timings.total = start.elapsed().as_secs_f64();
         frozen
+    }
+
+    /// The primal images (and the light-depth grids reverse mode keeps),
+    /// timing the photon estimate, the grids and the camera rays.
+    fn render_primal(&mut self) {
+        let scene = self.scene;
+        let t = Instant::now();
+        let multiple = self.multiple_with(|p| self.photons[p].power, scene.cameras.len());
+        let gather = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let depths = self.light_depths(&scene.density);
+        let shadows = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let rays = self.camera_rays(&scene.density, None, depths.as_ref());
+        let images = rays
+            .images(&self.camera_list(scene.cameras.len(), multiple.as_deref()))
+            .into_iter()
+            .zip(&scene.cameras)
+            .map(|(data, camera)| Image { width: camera.width, height: camera.height, data })
+            .collect();
+        let camera = t.elapsed().as_secs_f64();
+        self.images = images;
+        self.depths = depths;
+        self.timings.gather += gather;
+        self.timings.shadows = shadows;
+        self.timings.camera = camera;
     }
 
     /// Camera rays reading `density`, with sampling decisions from `sampling`
@@ -312,4 +303,30 @@ impl<'a> Frozen<'a> {
     ) -> Vec<(&'b Camera, u64, Option<&'b Estimate<'b, R>>)> {
         (0..cameras).map(|c| (&self.scene.cameras[c], self.first_pixel[c], multiple.map(|m| &m[c]))).collect()
     }
+}
+
+/// Where each path's photons start in `photons` (grouped by path, in path
+/// order), for `paths` paths, with the end as a last entry.
+fn path_starts(photons: &[Photon], paths: usize) -> Vec<usize> {
+    let mut start = vec![0usize; paths + 1];
+    for p in photons {
+        start[p.path as usize + 1] += 1;
+    }
+    for i in 0..paths {
+        start[i + 1] += start[i];
+    }
+    start
+}
+
+/// Each camera's first pixel among all the cameras' pixels, in order: the
+/// pixel streams' names.
+fn first_pixels(cameras: &[Camera]) -> Vec<u64> {
+    cameras
+        .iter()
+        .scan(0u64, |acc, c| {
+            let first = *acc;
+            *acc += c.pixels() as u64;
+            Some(first)
+        })
+        .collect()
 }
