@@ -149,9 +149,11 @@ pub struct FitSettings {
     /// settings study's frames 4 gained 0.07 dB at almost 4 times the rig's time.
     pub rig_factor: Option<usize>,
     /// With `shared_alignment`, the image model the calibration frames are
-    /// fitted under. Emission-absorption by default: the cheapest, and every
-    /// model then sees the same cameras. Where the lights shape the images,
-    /// its misfit may move the cameras (a study setting).
+    /// fitted under; every model then sees the same cameras.
+    /// Emission-absorption by default: on the settings study's frames
+    /// multiple scattering placed the cameras within 0.2 pixels of it and
+    /// scored the same, at 2.4 times the rig's time. Where the lights shape
+    /// the images (a made capture), it gained 1.5 dB on the held-out camera.
     pub rig_model: ImageModel,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
