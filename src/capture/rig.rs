@@ -7,8 +7,9 @@
 //! on calibration frames spread over the clip (frames nobody reports,
 //! [`calibration_frames`]), each fitted under one image model
 //! (emission-absorption by default, the cheapest: the alignment is the
-//! cameras', so every model then sees the same cameras), and keeps per camera the
-//! median over those frames. The held-out camera is not part of it.
+//! cameras', so every model then sees the same cameras), and keeps per
+//! camera the median over those frames. The held-out camera is not part of
+//! it.
 
 use super::align::{take_out_shared, Corrections};
 use super::fit::{fit, Fit};
