@@ -129,7 +129,7 @@ fn run(args: Args) -> Result<()> {
         );
         md += &models::table(&fits, &args.models);
         if let Some(rig) = &rig {
-            md += &models::rig_note(rig, fit_settings.rig_model);
+            md += &models::rig_note(rig, &fit_settings);
         }
         let nearest_rows: Vec<(usize, f64)> =
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();

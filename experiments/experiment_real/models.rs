@@ -85,17 +85,29 @@ pub struct FitResult {
     pub rel_rmse_oracle_aligned: Option<f64>,
 }
 
-/// The rig, fitted under `model`, in words and a table, for summary.md.
-pub fn rig_note(rig: &Rig, model: ImageModel) -> String {
+/// The rig, fitted under the model `settings` chose for it, in words and a
+/// table, for summary.md.
+pub fn rig_note(rig: &Rig, settings: &FitSettings) -> String {
     let frames: Vec<String> = rig.frames.iter().map(|f| f.to_string()).collect();
     let mut md = format!(
         "\nThe training cameras were aligned once for every frame, on frames {} under \
          {} ({:.0} s, once per run): per camera how far its principal point moved \
-         (pixels of the capture, right and down) and the factor its focal lengths were scaled by.\n\n",
+         (pixels of the capture, right and down) and the factor its focal lengths were scaled by.",
         frames.join(", "),
-        model.name(),
+        rig.model.unwrap_or(settings.rig_model).name(),
         rig.seconds
     );
+    if let (Some(share), Some(bound)) = (rig.lit_share, settings.rig_lit_share) {
+        md += &format!(
+            " The model follows the rule fixed in the settings: fitted under multiple scattering, \
+             frame {} gave the lights {:.1} % of its training images' light, {} the bound of {:.1} %.",
+            rig.frames[0],
+            100.0 * share,
+            if share >= bound { "at least" } else { "below" },
+            100.0 * bound
+        );
+    }
+    md += "\n\n";
     let rows = rig.cameras.iter().map(|c| {
         vec![
             c.name.clone(),

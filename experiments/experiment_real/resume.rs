@@ -157,7 +157,7 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
         return Ok(Some(rig));
     }
     let rig = Rig::if_shared(capture, &roles.training, base, &mut |frame, fit| {
-        eprintln!("rig: frame {frame} fitted in {:.0} s", fit.seconds)
+        eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
     })?;
     if let Some(rig) = &rig {
         write_json(path, &serde_json::to_value(rig).map_err(|e| Error(e.to_string()))?)?;

@@ -102,8 +102,8 @@ pub fn fit_and_write(
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
     eprintln!("reading frame {frame} of {} cameras ...", roles.training.len() + roles.held_out.len());
-    let rig = Rig::if_shared(&capture, &roles.training, settings, &mut |f, _| {
-        eprintln!("aligned the training cameras on frame {f}")
+    let rig = Rig::if_shared(&capture, &roles.training, settings, &mut |f, fit| {
+        eprintln!("aligned the training cameras on frame {f} under {}", fit.settings.model.name())
     })?;
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
     let mut log: Vec<FitRow> = Vec::new();

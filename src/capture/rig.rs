@@ -5,16 +5,20 @@
 //! a thin column of smoke near the image's edge a camera's magnification
 //! and its vertical offset explain the same pixels. A rig fits them once,
 //! on calibration frames spread over the clip (frames nobody reports,
-//! [`calibration_frames`]), each fitted under one image model
-//! (emission-absorption by default, the cheapest: the alignment is the
-//! cameras', so every model then sees the same cameras), and keeps per
-//! camera the median over those frames. The held-out camera is not part of
-//! it.
+//! [`calibration_frames`]), each fitted under one image model, and keeps
+//! per camera the median over those frames. The alignment is the cameras',
+//! so every model then sees the same cameras. The model is
+//! emission-absorption, the cheapest, unless the lights shape the images:
+//! then a model without them moves the cameras to make up for their light,
+//! so where a multiple-scattering fit of the first calibration frame gives
+//! the lights a large share of the light
+//! ([`FitSettings::rig_lit_share`]), every calibration frame is fitted
+//! under multiple scattering. The held-out camera is not part of the rig.
 
 use super::align::{take_out_shared, Corrections};
 use super::fit::{fit, Fit};
 use super::observe::observe;
-use super::settings::FitSettings;
+use super::settings::{FitSettings, ImageModel};
 use super::Capture;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
@@ -43,6 +47,15 @@ pub struct Rig {
     /// Seconds its fits took, all frames together: paid once per capture.
     #[serde(default)]
     pub seconds: f64,
+    /// The image model its frames were fitted under (none in a rig written
+    /// before it was recorded: the settings' `rig_model`).
+    #[serde(default)]
+    pub model: Option<ImageModel>,
+    /// The lights' share of the first calibration frame's training images
+    /// in its fit under multiple scattering, where the settings' rule
+    /// ([`FitSettings::rig_lit_share`]) asked for that fit.
+    #[serde(default)]
+    pub lit_share: Option<f64>,
 }
 
 /// `n` frames of a clip of `count` frames, at the middles of `n` equal
@@ -73,7 +86,8 @@ impl Rig {
 
     /// Fits the rig of `training` cameras of `capture` on its
     /// [`calibration_frames`], each with `settings` (their per-frame
-    /// alignment on) under their `rig_model`. `progress` hears each frame.
+    /// alignment on) under their `rig_model`, or under multiple scattering
+    /// where their `rig_lit_share` rule says so. `progress` hears each fit.
     pub fn fit(
         capture: &Capture,
         training: &[usize],
@@ -84,7 +98,6 @@ impl Rig {
         let smoke_box = capture.grid_box()?;
         let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
         let settings = FitSettings {
-            model: settings.rig_model,
             align: true,
             shared_alignment: false,
             factor: settings.rig_factor.unwrap_or(settings.factor),
@@ -94,11 +107,25 @@ impl Rig {
             ..settings.clone()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;
+        let mut fit_under = |model: ImageModel, i: usize| {
+            let settings = FitSettings { model, ..settings.clone() };
+            let fitted = fit(&observed.cameras, &observed.images[i], smoke_box, &settings, None, &mut |_| {})?;
+            progress(frames[i], &fitted);
+            Ok::<Fit, crate::error::Error>(fitted)
+        };
         let mut fits = Vec::new();
-        for (&frame, images) in frames.iter().zip(&observed.images) {
-            let fitted = fit(&observed.cameras, images, smoke_box, &settings, None, &mut |_| {})?;
-            progress(frame, &fitted);
-            fits.push(fitted);
+        let (mut model, mut lit_share) = (settings.rig_model, None);
+        if let (Some(bound), true) = (settings.rig_lit_share, model != ImageModel::Multiple) {
+            let probe = fit_under(ImageModel::Multiple, 0)?;
+            let share = probe.light_share.unwrap_or(0.0);
+            lit_share = Some(share);
+            if share >= bound {
+                model = ImageModel::Multiple;
+                fits.push(probe);
+            }
+        }
+        for i in fits.len()..frames.len() {
+            fits.push(fit_under(model, i)?);
         }
         let median = |values: Vec<f64>| {
             let mut v = values;
@@ -115,7 +142,7 @@ impl Rig {
             })
             .collect();
         let cameras = centred(cameras);
-        Ok(Rig { frames, cameras, seconds: start.elapsed().as_secs_f64() })
+        Ok(Rig { frames, cameras, seconds: start.elapsed().as_secs_f64(), model: Some(model), lit_share })
     }
 
     /// The corrections a fit starts from, in the training cameras' order.
@@ -160,6 +187,8 @@ mod tests {
             frames: vec![0],
             cameras: vec![camera("a", [16.0, -8.0], 1.05), camera("b", [1.0, 2.0], 0.95)],
             seconds: 0.0,
+            model: None,
+            lit_share: None,
         };
         let fixed = rig.corrections();
         assert_eq!((fixed.offsets_px, fixed.zooms), (vec![[16.0, -8.0], [1.0, 2.0]], vec![1.05, 0.95]));

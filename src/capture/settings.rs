@@ -155,6 +155,13 @@ pub struct FitSettings {
     /// scored the same, at 2.4 times the rig's time. Where the lights shape
     /// the images (a made capture), it gained 1.5 dB on the held-out camera.
     pub rig_model: ImageModel,
+    /// With `shared_alignment` and a `rig_model` other than multiple: fit
+    /// the first calibration frame under multiple scattering first, and
+    /// fit the rig under multiple scattering if the lights carry at least
+    /// this share of that frame's training images' light (the rest is the
+    /// ambient term's), a rule fixed before the frames are seen. The
+    /// probe costs one fit. None: the rig keeps `rig_model`.
+    pub rig_lit_share: Option<f64>,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
     /// carved through the aligned cameras with this margin. Before, the
@@ -247,6 +254,7 @@ impl Default for FitSettings {
             rig_frames: 3,
             rig_factor: None,
             rig_model: ImageModel::EmissionAbsorption,
+            rig_lit_share: None,
             aligned_margin: 20.0,
             lights: 0,
             gains: true,
@@ -283,6 +291,9 @@ impl FitSettings {
         }
         if self.rig_factor == Some(0) {
             return bad("rig_factor must be at least 1");
+        }
+        if self.rig_lit_share.is_some_and(|s| !(0.0..=1.0).contains(&s)) {
+            return bad("rig_lit_share must be in [0, 1]");
         }
         if self.rig_frames == 0 {
             return bad("rig_frames must be at least 1");
@@ -388,6 +399,9 @@ mod tests {
                 n if n.starts_with("rig_frames_") => settings.rig_frames.to_string() == n["rig_frames_".len()..],
                 n if n.starts_with("rig_factor_") => settings.rig_factor == n["rig_factor_".len()..].parse().ok(),
                 "rig_multiple" => settings.rig_model == ImageModel::Multiple,
+                n if n.starts_with("rig_lit_share_") => {
+                    settings.rig_lit_share == n["rig_lit_share_".len()..].parse().ok()
+                }
                 n if n.starts_with("orders_") => settings.orders.to_string() == n["orders_".len()..],
                 n if n.starts_with("photons_") => settings.photons.to_string() == n["photons_".len()..],
                 n if n.starts_with("spp_") => settings.spp.to_string() == n["spp_".len()..],
