@@ -247,13 +247,10 @@ fn flat_video(dir: &Path, name: &str, frames: u16, code: u16) {
     assert!(status.success());
 }
 
-#[test]
-fn experiment_real_scores_black_and_the_nearest_view() {
-    if !frames::have_ffmpeg() {
-        eprintln!("SKIPPED experiment_real_scores_black_and_the_nearest_view: ffmpeg is not installed");
-        return;
-    }
-    let dir = temp_dir("capture_experiment");
+/// A capture of three flat videos of three frames (64x48): the held-out
+/// camera's at code 100, training cameras' at 80 (nearest) and 200.
+fn flat_capture(name: &str) -> std::path::PathBuf {
+    let dir = temp_dir(name);
     flat_video(&dir, "test", 3, 100);
     flat_video(&dir, "near", 3, 80);
     flat_video(&dir, "far", 3, 200);
@@ -264,6 +261,64 @@ fn experiment_real_scores_black_and_the_nearest_view() {
         "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0,
     });
     std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
+    dir
+}
+
+#[test]
+fn the_rig_is_fitted_under_multiple_scattering_only_where_the_probe_finds_the_lights_share() {
+    // Two training cameras see a disc of smoke, one of them 5 pixels off: the rig has something to align.
+    let dir = temp_dir("capture_rig_rule");
+    for (name, dx) in [("a", 0), ("b", 5), ("test", 0)] {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        for f in 0..3 {
+            write_png(&dir.join(name).join(format!("{f:03}.png")), 128, 96, false, |x, y| {
+                disc(x.saturating_sub(dx), y)
+            });
+        }
+    }
+    let cam = |file: &str, x: f64, z: f64| json!({"file_name": file, "frame_num": 3, "camera_angle_x": 0.6, "camera_hw": [96, 128], "transform_matrix": looking_at_origin(x, z)});
+    let calib = json!({"train_videos": [cam("a", 0.0, 2.0), cam("b", 2.0, 0.0)], "test_videos": [cam("test", 1.414, 1.414)],
+        "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0});
+    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
+    // The rig of a run with `rule` added to small settings (fits of seconds): its model, the probe's share and its cameras.
+    let rig = |name: &str, rule: &str| {
+        let settings = dir.join(format!("{name}.json"));
+        std::fs::write(&settings, format!(r#"{{"resolution": 16, "updates": [4, 4], "photons": 2000{rule}}}"#))
+            .unwrap();
+        let out = dir.join(name);
+        let done = std::process::Command::new(env!("CARGO_BIN_EXE_experiment_real"))
+            .arg("--data")
+            .arg(&dir)
+            .args(["--frames", "2", "--models", "emission-absorption", "--fit-settings"])
+            .arg(&settings)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
+        let rig: Value = serde_json::from_str(&std::fs::read_to_string(out.join("rig.json")).unwrap()).unwrap();
+        (rig["model"].clone(), rig["lit_share"].as_f64(), rig["cameras"].clone())
+    };
+    let (model, share, cameras) = rig("plain", "");
+    assert_eq!((model, share), (json!("emission-absorption"), None));
+    // A bound no share exceeds keeps the rig the plain one, bit for bit, with the probe's share recorded.
+    let (model, share, kept) = rig("above", r#", "rig_lit_share": 1.0"#);
+    assert_eq!(model, json!("emission-absorption"));
+    assert!(share.is_some_and(|s| s > 0.0 && s <= 1.0), "{share:?}");
+    assert_eq!(kept, cameras);
+    // A bound of 0 fits it under multiple scattering: other cameras.
+    let (model, lit, moved) = rig("below", r#", "rig_lit_share": 0.0"#);
+    assert_eq!((model, lit), (json!("multiple"), share), "the same probe");
+    assert_ne!(moved, cameras);
+}
+
+#[test]
+fn experiment_real_scores_black_and_the_nearest_view() {
+    if !frames::have_ffmpeg() {
+        eprintln!("SKIPPED experiment_real_scores_black_and_the_nearest_view: ffmpeg is not installed");
+        return;
+    }
+    let dir = flat_capture("capture_experiment");
     let exe = env!("CARGO_BIN_EXE_experiment_real");
     let out = dir.join("out");
     let run = |frames: &str| {

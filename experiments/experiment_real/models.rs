@@ -103,7 +103,7 @@ pub fn rig_note(rig: &Rig, settings: &FitSettings) -> String {
              frame {} gave the lights {:.1} % of its training images' light, {} the bound of {:.1} %.",
             rig.frames[0],
             100.0 * share,
-            if share >= bound { "at least" } else { "below" },
+            if share > bound { "above" } else { "not above" },
             100.0 * bound
         );
     }

@@ -119,7 +119,7 @@ impl Rig {
             let probe = fit_under(ImageModel::Multiple, 0)?;
             let share = probe.light_share.unwrap_or(0.0);
             lit_share = Some(share);
-            if share >= bound {
+            if share > bound {
                 model = ImageModel::Multiple;
                 fits.push(probe);
             }

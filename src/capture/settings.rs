@@ -157,10 +157,10 @@ pub struct FitSettings {
     pub rig_model: ImageModel,
     /// With `shared_alignment` and a `rig_model` other than multiple: fit
     /// the first calibration frame under multiple scattering first, and
-    /// fit the rig under multiple scattering if the lights carry at least
+    /// fit the rig under multiple scattering if the lights carry more than
     /// this share of that frame's training images' light (the rest is the
     /// ambient term's), a rule fixed before the frames are seen. The
-    /// probe costs one fit. None: the rig keeps `rig_model`.
+    /// probe costs one fit. 1 or none: the rig keeps `rig_model`.
     pub rig_lit_share: Option<f64>,
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
@@ -351,6 +351,18 @@ impl FitSettings {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bound_on_the_lights_share_outside_0_to_1_is_refused() {
+        for bound in [-0.1, 1.5, f64::NAN] {
+            let settings = FitSettings { rig_lit_share: Some(bound), ..FitSettings::default() };
+            let err = settings.validate().unwrap_err().to_string();
+            assert!(err.contains("rig_lit_share must be in [0, 1]"), "{bound}: {err}");
+        }
+        for bound in [0.0, 0.1, 1.0] {
+            FitSettings { rig_lit_share: Some(bound), ..FitSettings::default() }.validate().unwrap();
+        }
+    }
 
     #[test]
     fn the_shipped_fit_settings_are_valid_and_change_what_their_names_say() {
