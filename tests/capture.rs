@@ -299,7 +299,7 @@ fn the_rig_is_fitted_under_multiple_scattering_only_where_the_probe_finds_the_li
         let rig: Value = serde_json::from_str(&std::fs::read_to_string(out.join("rig.json")).unwrap()).unwrap();
         (rig["model"].clone(), rig["lit_share"].as_f64(), rig["cameras"].clone())
     };
-    let (model, share, cameras) = rig("plain", "");
+    let (model, share, cameras) = rig("plain", r#", "rig_lit_share": null"#);
     assert_eq!((model, share), (json!("emission-absorption"), None));
     // A bound no share exceeds keeps the rig the plain one, bit for bit, with the probe's share recorded.
     let (model, share, kept) = rig("above", r#", "rig_lit_share": 1.0"#);
@@ -321,11 +321,15 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     let dir = flat_capture("capture_experiment");
     let exe = env!("CARGO_BIN_EXE_experiment_real");
     let out = dir.join("out");
+    // The rig without its probe fit under multiple scattering (a test of its own).
+    let no_probe = dir.join("no_probe.json");
+    std::fs::write(&no_probe, r#"{"rig_lit_share": null}"#).unwrap();
     let run = |frames: &str| {
         std::process::Command::new(exe)
             .arg("--data")
             .arg(&dir)
-            .args(["--frames", frames, "--models", "emission-absorption"])
+            .args(["--frames", frames, "--models", "emission-absorption", "--fit-settings"])
+            .arg(&no_probe)
             .arg("--out")
             .arg(&out)
             .output()
@@ -366,7 +370,7 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
     assert_eq!(std::fs::read_to_string(out.join("fits.csv")).unwrap(), fits, "the same settings refit nothing");
     let settings = dir.join("orders.json");
-    std::fs::write(&settings, r#"{"orders": 4}"#).unwrap();
+    std::fs::write(&settings, r#"{"orders": 4, "rig_lit_share": null}"#).unwrap();
     let other = std::process::Command::new(exe)
         .arg("--data")
         .arg(&dir)
@@ -435,11 +439,16 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     };
     let exe = env!("CARGO_BIN_EXE_dualphoton");
     let out = dir.join("out");
+    // The rig without its probe fit under multiple scattering (a test of its own).
+    let no_probe = dir.join("no_probe.json");
+    std::fs::write(&no_probe, r#"{"rig_lit_share": null}"#).unwrap();
     let fit = |frame: &str| {
         std::process::Command::new(exe)
             .args(["fit", "--capture"])
             .arg(dir.join("info.json"))
-            .args(["--frame", frame, "--out"])
+            .args(["--frame", frame, "--study"])
+            .arg(&no_probe)
+            .arg("--out")
             .arg(&out)
             .output()
             .unwrap()
