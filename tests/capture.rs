@@ -247,23 +247,6 @@ fn flat_video(dir: &Path, name: &str, frames: u16, code: u16) {
     assert!(status.success());
 }
 
-/// A capture of three flat videos of three frames (64x48): the held-out
-/// camera's at code 100, training cameras' at 80 (nearest) and 200.
-fn flat_capture(name: &str) -> std::path::PathBuf {
-    let dir = temp_dir(name);
-    flat_video(&dir, "test", 3, 100);
-    flat_video(&dir, "near", 3, 80);
-    flat_video(&dir, "far", 3, 200);
-    let cam = |file: &str, x: f64, z: f64| json!({"file_name": file, "frame_num": 3, "camera_angle_x": 0.5, "camera_hw": [48, 64], "transform_matrix": looking_at_origin(x, z)});
-    let calib = json!({
-        "train_videos": [cam("far.mp4", 2.0, 0.0), cam("near.mp4", 1.0, 1.732)],
-        "test_videos": [cam("test.mp4", 0.0, 2.0)],
-        "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0,
-    });
-    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
-    dir
-}
-
 #[test]
 fn the_rig_is_fitted_under_multiple_scattering_only_where_the_probe_finds_the_lights_share() {
     // Two training cameras see a disc of smoke, one of them 5 pixels off: the rig has something to align.
@@ -318,7 +301,17 @@ fn experiment_real_scores_black_and_the_nearest_view() {
         eprintln!("SKIPPED experiment_real_scores_black_and_the_nearest_view: ffmpeg is not installed");
         return;
     }
-    let dir = flat_capture("capture_experiment");
+    let dir = temp_dir("capture_experiment");
+    flat_video(&dir, "test", 3, 100);
+    flat_video(&dir, "near", 3, 80);
+    flat_video(&dir, "far", 3, 200);
+    let cam = |file: &str, x: f64, z: f64| json!({"file_name": file, "frame_num": 3, "camera_angle_x": 0.5, "camera_hw": [48, 64], "transform_matrix": looking_at_origin(x, z)});
+    let calib = json!({
+        "train_videos": [cam("far.mp4", 2.0, 0.0), cam("near.mp4", 1.0, 1.732)],
+        "test_videos": [cam("test.mp4", 0.0, 2.0)],
+        "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0,
+    });
+    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
     let exe = env!("CARGO_BIN_EXE_experiment_real");
     let out = dir.join("out");
     // The rig without its probe fit under multiple scattering (a test of its own).
