@@ -21,10 +21,9 @@
 
 use clap::Parser;
 use dualphoton::capture::calibration;
-use dualphoton::capture::density::start_density;
+use dualphoton::capture::density::plume_in_box;
 use dualphoton::capture::lighting::{candidate_lights, direction};
 use dualphoton::capture::settings::FitSettings;
-use dualphoton::data::plume::plume;
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
@@ -33,7 +32,6 @@ use dualphoton::math::Vec3;
 use dualphoton::render::render_photon;
 use dualphoton::rng::{Purpose, Rng};
 use dualphoton::scene::{Light, Medium, RenderSettings, Scene};
-use dualphoton::volume::Grid;
 use serde::Serialize;
 use serde_json::Value;
 use std::path::PathBuf;
@@ -172,10 +170,8 @@ fn run(args: Args) -> Result<()> {
 
 /// Frame `frame`'s scene: the plume on the smoke box, the three lights, every camera.
 fn truth(args: &Args, frame: usize, lo: Vec3, hi: Vec3, cameras: Vec<dualphoton::scene::Camera>) -> Scene {
-    let unit = plume(args.res, args.seed.wrapping_add(frame as u64));
-    let grid = Grid::new(lo, hi, unit.shape, unit.data);
     let fit = FitSettings::default();
-    let density = start_density(&grid, &grid.data, fit.start_depth);
+    let density = plume_in_box(lo, hi, args.res, args.seed.wrapping_add(frame as u64), fit.start_depth);
     Scene {
         density,
         medium: Medium { sigma_t_scale: 1.0, albedo: fit.albedo, g: fit.g, max_order: ORDERS, emission: 0.0 },

@@ -143,6 +143,16 @@ pub fn start_density(grid: &Grid<f64>, shape: &[f64], depth: f64) -> Grid<f64> {
     Grid::new(grid.lo, grid.hi, grid.shape, shape.iter().map(|&s| s * rho).collect())
 }
 
+/// The built-in plume of `seed` (`res` voxels a side) stretched over the
+/// box `lo`..`hi` at an optical depth of `depth` across it, by
+/// [`start_density`]: a made capture's truth, rebuilt from its seed by
+/// whatever asks what the truth's density would give.
+pub fn plume_in_box(lo: Vec3, hi: Vec3, res: usize, seed: u64, depth: f64) -> Grid<f64> {
+    let unit = crate::data::plume::plume(res, seed);
+    let grid = Grid::new(lo, hi, unit.shape, unit.data);
+    start_density(&grid, &grid.data, depth)
+}
+
 /// The factor on `shape` that makes [`start_density`] of it.
 fn depth_scale(grid: &Grid<f64>, shape: &[f64], depth: f64) -> f64 {
     let inside = shape.iter().filter(|&&s| s > 0.0).count().max(1) as f64;

@@ -121,6 +121,36 @@ pub fn fit(
     state.finish()
 }
 
+/// The lighting a fit would give a density held as it is: the lights'
+/// intensities, the emission and the gains from [`LIGHTING_ROUNDS`] of the
+/// refits a fit makes between its density's updates, each after a render
+/// of the scene as it then is; the training cameras as calibrated. Why:
+/// given a made capture's true density, it says whether the training
+/// views can tell the lights apart at all, apart from the density's fit.
+pub fn fit_lighting(
+    cameras: &[Camera],
+    images: &[Image],
+    smoke_box: (Vec3, Vec3),
+    density: Grid<f64>,
+    settings: &FitSettings,
+) -> Result<Fit> {
+    settings.validate()?;
+    let mut state = FrameFit::new(cameras, images, smoke_box, settings, None)?;
+    state.scene.density = density;
+    for _ in 0..LIGHTING_ROUNDS {
+        state.scene.render.seed = settings.seed.wrapping_add(state.renders);
+        state.renders += 1;
+        state.last = Some(render_photon(&state.scene).images);
+        // As on a fit's finest level: the gains too, the cameras held.
+        state.refit_lighting(true)?;
+    }
+    state.finish()
+}
+
+/// How many times [`fit_lighting`] fits the lighting: as many as a fit's
+/// last level does by default (80 updates, a refit every 10).
+pub const LIGHTING_ROUNDS: usize = 8;
+
 /// A frame's fit between two updates: what [`fit`] carries from one to the next.
 struct FrameFit<'a> {
     settings: &'a FitSettings,
@@ -304,17 +334,25 @@ impl<'a> FrameFit<'a> {
                 &self.images,
             );
         }
-        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
-        let basis = fit_lights(&mut self.scene, &targets, self.ambient, &mut self.renders)?;
-        if settings.gains && stage > 0 {
-            fit_gains(&mut self.gains, &weights_of(&self.scene), &basis, &targets);
-            self.images = self.photographs.iter().zip(&self.gains).map(|(p, g)| p.map(|v| v / g)).collect();
-        }
+        let (targets, basis) = self.refit_lighting(stage > 0)?;
         if settings.lights > 0 && stage > 0 && settings.model.lit() {
             let (ambient, lights) = (self.ambient, settings.lights);
             place_lights(&mut self.scene, &targets, &basis, lights, ambient, &mut self.damping, &mut self.renders);
         }
         Ok(())
+    }
+
+    /// The lights' intensities and the emission fitted to the photographs
+    /// (censored by the last render), then, with `gains` and if the
+    /// settings fit them, the gains. Returns the targets and the unit renders.
+    fn refit_lighting(&mut self, gains: bool) -> Result<(Vec<Image>, Vec<Vec<Image>>)> {
+        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
+        let basis = fit_lights(&mut self.scene, &targets, self.ambient, &mut self.renders)?;
+        if self.settings.gains && gains {
+            fit_gains(&mut self.gains, &weights_of(&self.scene), &basis, &targets);
+            self.images = self.photographs.iter().zip(&self.gains).map(|(p, g)| p.map(|v| v / g)).collect();
+        }
+        Ok((targets, basis))
     }
 
     /// One update's render of the scene as it is: its images' gradient with
@@ -622,6 +660,54 @@ mod tests {
         assert!(cube.validate().unwrap_err().0.contains("decoder"), "a decoder needs a cube of 4 * 2^n voxels");
         let per_frame = FitSettings { align: true, shared_alignment: false, ..cube };
         assert!(FitSettings { resolution: 8, ..per_frame }.validate().unwrap_err().0.contains("shared_alignment"));
+    }
+
+    /// With the density held at the truth's, the lighting comes back: two
+    /// candidates' intensities, no emission, the gains 1. A camera made
+    /// twice as bright gets the largest gain, and the images are fitted as
+    /// closely (on a ball the lights' view-dependent light can stand in for
+    /// part of a gain, so the split is not asked).
+    #[test]
+    fn the_lighting_of_a_known_density_comes_back() {
+        let (cameras, _) = ball_views(24, 6.0);
+        let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+        let settings = FitSettings { model: ImageModel::Single, threshold: 0.0, ..FitSettings::default() };
+        let mut density = Grid::new(smoke_box.0, smoke_box.1, [8, 8, 8], vec![0.0; 512]);
+        for v in 0..512 {
+            if density.voxel_center(v / 64, (v / 8) % 8, v % 8).norm() < 0.3 {
+                density.data[v] = 4.0;
+            }
+        }
+        let mut truth = Scene {
+            density: density.clone(),
+            medium: Medium { sigma_t_scale: 1.0, albedo: 1.0, g: settings.g, max_order: 1, emission: 0.0 },
+            lights: candidate_lights(&smoke_box.0, &smoke_box.1),
+            cameras: cameras.to_vec(),
+            render: RenderSettings { photons: 0, spp: 8, seed: 99, ..RenderSettings::default() },
+        };
+        truth.lights[0].intensity = 2.0;
+        truth.lights[3].intensity = 1.0;
+        let images = render_photon(&truth).images;
+        let done = fit_lighting(&cameras, &images, smoke_box, density.clone(), &settings).unwrap();
+        assert_eq!(done.scene.density.data, density.data, "the density moved");
+        let lights: Vec<f64> = done.scene.lights.iter().map(|l| l.intensity).collect();
+        // A ball's views tell its lights apart by their shading alone: the
+        // truth's two the strongest, near their intensities, the rest small.
+        assert!((lights[0] / 2.0 - 1.0).abs() < 0.1 && (lights[3] - 1.0).abs() < 0.15, "lights {lights:?}");
+        let others: f64 = lights.iter().enumerate().filter(|(l, _)| ![0, 3].contains(l)).map(|(_, w)| w).sum();
+        assert!(others < 0.15 * (lights[0] + lights[3]), "lights {lights:?}");
+        assert!(done.scene.medium.emission < 0.02, "emission {}", done.scene.medium.emission);
+        assert!(done.gains.iter().all(|g| (g - 1.0).abs() < 0.05), "gains {:?}", done.gains);
+        let error = training_rmse(&done, &images);
+        let scale = (images.iter().flat_map(|im| &im.data).map(|v| v * v).sum::<f64>() / (3.0 * 576.0)).sqrt();
+        // The renders' own noise (2 camera samples a pixel) is most of it.
+        assert!(error < 0.15 * scale, "RMSE {error} against the images' {scale}");
+        let mut brighter = images.clone();
+        brighter[1] = brighter[1].map(|v| 2.0 * v);
+        let done = fit_lighting(&cameras, &brighter, smoke_box, density, &settings).unwrap();
+        assert!(done.gains[1] > 1.3 * done.gains[0].max(done.gains[2]), "gains {:?}", done.gains);
+        let brighter_error = training_rmse(&done, &brighter);
+        assert!(brighter_error < 2.0 * error, "RMSE {brighter_error}, against {error} at gains 1");
     }
 
     /// A photograph through the inverse response, over a camera's gain, comes

@@ -1,0 +1,166 @@
+//! The lights a made capture's true density gives: the lighting a fit
+//! would fit (the candidates' intensities, the ambient term and the
+//! training cameras' gains) with the density held at the truth, through
+//! the calibration's cameras, under the fit's orders and under the
+//! truth's. Then the held-out camera, rendered and scored as
+//! `experiment_real` scores it.
+//!
+//! Why: on a made capture the fit misplaces one of the truth's lights. With
+//! the truth's density, whether the lights come back says whether the
+//! training views can tell them apart, or whether the density the fit
+//! reaches is what sends them elsewhere; the training RMSE and the held-out
+//! score say what the fit's image model gives at best.
+
+use clap::Parser;
+use dualphoton::capture::calibration;
+use dualphoton::capture::density::plume_in_box;
+use dualphoton::capture::fit::{fit_lighting, render_view, training_rmse};
+use dualphoton::capture::frame::{read, Roles};
+use dualphoton::capture::protocol::{Protocol, Score};
+use dualphoton::capture::settings::FitSettings;
+use dualphoton::error::{Error, Result};
+use dualphoton::experiment::{self, Run};
+use dualphoton::io::rows::{fmt, markdown_table, write_rows};
+use serde::Serialize;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+#[derive(Parser, Serialize)]
+#[command(about = "The lighting a made capture's true density gives, and its held-out score")]
+struct Args {
+    /// A made capture (`made_capture`'s `OUT/ambient_P`): its info.json and frames; the folder above it holds
+    /// the manifest that gives the truth's plume.
+    #[arg(long)]
+    data: PathBuf,
+    /// Frames fitted and scored.
+    #[arg(long, value_delimiter = ',', default_value = "1,3,5")]
+    frames: Vec<usize>,
+    /// Scattering orders of the lighting's renders: the fit's (3) and the truth's (8) by default.
+    #[arg(long, value_delimiter = ',', default_value = "3,8")]
+    orders: Vec<u32>,
+    /// Output directory: lights.csv, summary.md, manifest.json.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// One line of lights.csv.
+#[derive(Serialize)]
+struct Row {
+    frame: usize,
+    orders: u32,
+    /// The candidates' intensities (`;`-separated, in `candidate_lights`' order).
+    lights: String,
+    #[serde(serialize_with = "fmt::e6")]
+    emission: f64,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    light_share: Option<f64>,
+    /// Per training camera (`;`-separated).
+    gains: String,
+    /// The training cameras' RMSE at the working resolution, in code values.
+    #[serde(serialize_with = "fmt::f4")]
+    train_rmse_codes: f64,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    psnr_db: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    rel_rmse: Option<f64>,
+    #[serde(serialize_with = "fmt::f1")]
+    seconds: f64,
+}
+
+fn main() -> std::process::ExitCode {
+    experiment::main(run)
+}
+
+fn run(args: Args) -> Result<()> {
+    if args.frames.is_empty() || args.orders.is_empty() {
+        return Err(Error("--frames and --orders: give at least one each".into()));
+    }
+    if let Some(bad) = args.orders.iter().find(|&&o| o == 0) {
+        return Err(Error(format!("--orders: {bad} is not a number of scattering orders (1 or more)")));
+    }
+    let (res, seed) = truth_of(&args.data)?;
+    let capture = calibration::load(&calibration::locate(&args.data))?;
+    let roles = Roles::of(&capture);
+    let &held_out = roles.held_out.first().ok_or_else(|| Error("the capture has no held-out camera".into()))?;
+    let defaults = FitSettings::default();
+    dualphoton::capture::frame::check(&capture, &roles, &args.frames, &defaults)?;
+    let smoke_box = capture.grid_box()?;
+    let run = Run::start(&args.out)?;
+    let frames = read(&capture, &roles, &args.frames, defaults.factor)?;
+    let mut rows = Vec::new();
+    for images in &frames {
+        let density =
+            plume_in_box(smoke_box.0, smoke_box.1, res, seed.wrapping_add(images.frame as u64), defaults.start_depth);
+        for &orders in &args.orders {
+            let start = std::time::Instant::now();
+            let settings = FitSettings { orders, align: false, ..defaults.clone() };
+            let training = &images.training.images[0];
+            let fit = fit_lighting(&images.training.cameras, training, smoke_box, density.clone(), &settings)?;
+            let camera = &capture.views[held_out].camera;
+            let protocol = Protocol::for_size(camera.width, camera.height);
+            let score = Score::of(&protocol.view(&render_view(&fit, camera)), &protocol.view(&images.held_out[0]));
+            let join = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(";");
+            let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();
+            rows.push(Row {
+                frame: images.frame,
+                orders,
+                lights: join(&lights),
+                emission: fit.scene.medium.emission,
+                light_share: fit.light_share,
+                gains: join(&fit.gains),
+                train_rmse_codes: training_rmse(&fit, training) * 255.0,
+                psnr_db: score.psnr,
+                rel_rmse: score.rel_rmse,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+            eprintln!("frame {} orders {orders}: done ({:.0} s)", images.frame, run.seconds());
+        }
+    }
+    write_rows(&run.path("lights.csv"), &rows)?;
+    let table = markdown_table(
+        &[
+            "frame",
+            "orders",
+            "lights (candidates' order)",
+            "emission",
+            "lights' share",
+            "gains",
+            "training RMSE (codes)",
+            "held-out PSNR (dB)",
+            "relative RMSE",
+        ],
+        rows.iter().map(|r| {
+            let opt = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
+            vec![
+                r.frame.to_string(),
+                r.orders.to_string(),
+                r.lights.clone(),
+                format!("{:.4}", r.emission),
+                opt(r.light_share, 3),
+                r.gains.clone(),
+                format!("{:.3}", r.train_rmse_codes),
+                opt(r.psnr_db, 2),
+                opt(r.rel_rmse, 3),
+            ]
+        }),
+    );
+    std::fs::write(
+        run.path("summary.md"),
+        format!("# The lighting of the true density\n\nHeld-out camera: {}.\n\n{table}", capture.views[held_out].name),
+    )?;
+    run.write_manifest(&args)
+}
+
+/// The truth's plume (grid edge and seed of frame 0) from the manifest
+/// `made_capture` wrote in the folder above the capture.
+fn truth_of(data: &Path) -> Result<(usize, u64)> {
+    let folder = if data.is_dir() { data } else { data.parent().unwrap_or(Path::new(".")) };
+    let path = folder.join("..").join("manifest.json");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| Error(format!("{}: {e} (not a made capture: made_capture writes it)", path.display())))?;
+    let json: Value = serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+    match (json["res"].as_u64(), json["seed"].as_u64()) {
+        (Some(res), Some(seed)) => Ok((res as usize, seed)),
+        _ => Err(Error(format!("{}: no res and seed: not made_capture's manifest", path.display()))),
+    }
+}
