@@ -1,15 +1,16 @@
 //! The lights a made capture's true density gives: the lighting a fit
 //! would fit (the candidates' intensities, the ambient term and the
 //! training cameras' gains) with the density held at the truth, through
-//! the calibration's cameras, under the fit's orders and under the
-//! truth's. Then the held-out camera, rendered and scored as
+//! the calibration's cameras, under multiple scattering with the fit's
+//! orders and with the truth's, and under emission-absorption (its
+//! emission and gains). Then the held-out camera, rendered and scored as
 //! `experiment_real` scores it.
 //!
 //! Why: on a made capture the fit misplaces one of the truth's lights. With
 //! the truth's density, whether the lights come back says whether the
 //! training views can tell them apart, or whether the density the fit
 //! reaches is what sends them elsewhere; the training RMSE and the held-out
-//! score say what the fit's image model gives at best.
+//! score say what each image model gives at best, its density right.
 
 use clap::Parser;
 use dualphoton::capture::calibration;
@@ -17,7 +18,7 @@ use dualphoton::capture::density::plume_in_box;
 use dualphoton::capture::fit::{fit_lighting, render_view, training_rmse};
 use dualphoton::capture::frame::{read, Roles};
 use dualphoton::capture::protocol::{Protocol, Score};
-use dualphoton::capture::settings::FitSettings;
+use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
@@ -35,7 +36,10 @@ struct Args {
     /// Frames fitted and scored.
     #[arg(long, value_delimiter = ',', default_value = "1,3,5")]
     frames: Vec<usize>,
-    /// Scattering orders of the lighting's renders: the fit's (3) and the truth's (8) by default.
+    /// Image models.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "multiple,emission-absorption")]
+    models: Vec<ImageModel>,
+    /// Scattering orders of multiple scattering's renders: the fit's (3) and the truth's (8) by default.
     #[arg(long, value_delimiter = ',', default_value = "3,8")]
     orders: Vec<u32>,
     /// Output directory: lights.csv, summary.md, manifest.json.
@@ -47,6 +51,8 @@ struct Args {
 #[derive(Serialize)]
 struct Row {
     frame: usize,
+    model: String,
+    /// Most scattering events on a light path (0: emission-absorption, no lights).
     orders: u32,
     /// The candidates' intensities (`;`-separated, in `candidate_lights`' order).
     lights: String,
@@ -72,8 +78,8 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> Result<()> {
-    if args.frames.is_empty() || args.orders.is_empty() {
-        return Err(Error("--frames and --orders: give at least one each".into()));
+    if args.frames.is_empty() || args.orders.is_empty() || args.models.is_empty() {
+        return Err(Error("--frames, --models and --orders: give at least one each".into()));
     }
     if let Some(bad) = args.orders.iter().find(|&&o| o == 0) {
         return Err(Error(format!("--orders: {bad} is not a number of scattering orders (1 or more)")));
@@ -91,9 +97,14 @@ fn run(args: Args) -> Result<()> {
     for images in &frames {
         let density =
             plume_in_box(smoke_box.0, smoke_box.1, res, seed.wrapping_add(images.frame as u64), defaults.start_depth);
-        for &orders in &args.orders {
+        let arms = args.models.iter().flat_map(|&model| match model {
+            ImageModel::Multiple => args.orders.iter().map(|&orders| (model, orders)).collect(),
+            ImageModel::Single => vec![(model, 1)],
+            ImageModel::EmissionAbsorption => vec![(model, 0)],
+        });
+        for (model, orders) in arms {
             let start = std::time::Instant::now();
-            let settings = FitSettings { orders, align: false, ..defaults.clone() };
+            let settings = FitSettings { model, orders: orders.max(1), align: false, ..defaults.clone() };
             let training = &images.training.images[0];
             let fit = fit_lighting(&images.training.cameras, training, smoke_box, density.clone(), &settings)?;
             let camera = &capture.views[held_out].camera;
@@ -103,6 +114,7 @@ fn run(args: Args) -> Result<()> {
             let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();
             rows.push(Row {
                 frame: images.frame,
+                model: model.name().into(),
                 orders,
                 lights: join(&lights),
                 emission: fit.scene.medium.emission,
@@ -113,13 +125,14 @@ fn run(args: Args) -> Result<()> {
                 rel_rmse: score.rel_rmse,
                 seconds: start.elapsed().as_secs_f64(),
             });
-            eprintln!("frame {} orders {orders}: done ({:.0} s)", images.frame, run.seconds());
+            eprintln!("frame {} {} orders {orders}: done ({:.0} s)", images.frame, model.name(), run.seconds());
         }
     }
     write_rows(&run.path("lights.csv"), &rows)?;
     let table = markdown_table(
         &[
             "frame",
+            "model",
             "orders",
             "lights (candidates' order)",
             "emission",
@@ -133,6 +146,7 @@ fn run(args: Args) -> Result<()> {
             let opt = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
             vec![
                 r.frame.to_string(),
+                r.model.clone(),
                 r.orders.to_string(),
                 r.lights.clone(),
                 format!("{:.4}", r.emission),
