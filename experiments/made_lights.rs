@@ -81,14 +81,26 @@ fn run(args: Args) -> Result<()> {
     if args.frames.is_empty() || args.orders.is_empty() || args.models.is_empty() {
         return Err(Error("--frames, --models and --orders: give at least one each".into()));
     }
-    if let Some(bad) = args.orders.iter().find(|&&o| o == 0) {
-        return Err(Error(format!("--orders: {bad} is not a number of scattering orders (1 or more)")));
+    let defaults = FitSettings::default();
+    // Each arm's settings and its orders (0: emission-absorption), all checked before any work.
+    let mut arms = Vec::new();
+    for &model in &args.models {
+        let orders = if model == ImageModel::Multiple { args.orders.clone() } else { vec![defaults.orders] };
+        for orders in orders {
+            let settings = FitSettings { model, orders, align: false, ..defaults.clone() };
+            settings.validate().map_err(|e| Error(format!("--orders {orders}: {}", e.0)))?;
+            let shown = match model {
+                ImageModel::Multiple => orders,
+                ImageModel::Single => 1,
+                ImageModel::EmissionAbsorption => 0,
+            };
+            arms.push((settings, shown));
+        }
     }
     let (res, seed) = truth_of(&args.data)?;
     let capture = calibration::load(&calibration::locate(&args.data))?;
     let roles = Roles::of(&capture);
     let &held_out = roles.held_out.first().ok_or_else(|| Error("the capture has no held-out camera".into()))?;
-    let defaults = FitSettings::default();
     dualphoton::capture::frame::check(&capture, &roles, &args.frames, &defaults)?;
     let smoke_box = capture.grid_box()?;
     let run = Run::start(&args.out)?;
@@ -97,16 +109,11 @@ fn run(args: Args) -> Result<()> {
     for images in &frames {
         let density =
             plume_in_box(smoke_box.0, smoke_box.1, res, seed.wrapping_add(images.frame as u64), defaults.start_depth);
-        let arms = args.models.iter().flat_map(|&model| match model {
-            ImageModel::Multiple => args.orders.iter().map(|&orders| (model, orders)).collect(),
-            ImageModel::Single => vec![(model, 1)],
-            ImageModel::EmissionAbsorption => vec![(model, 0)],
-        });
-        for (model, orders) in arms {
+        for (settings, orders) in &arms {
+            let (model, orders) = (settings.model, *orders);
             let start = std::time::Instant::now();
-            let settings = FitSettings { model, orders: orders.max(1), align: false, ..defaults.clone() };
             let training = &images.training.images[0];
-            let fit = fit_lighting(&images.training.cameras, training, smoke_box, density.clone(), &settings)?;
+            let fit = fit_lighting(&images.training.cameras, training, smoke_box, density.clone(), settings)?;
             let camera = &capture.views[held_out].camera;
             let protocol = Protocol::for_size(camera.width, camera.height);
             let score = Score::of(&protocol.view(&render_view(&fit, camera)), &protocol.view(&images.held_out[0]));
@@ -125,10 +132,11 @@ fn run(args: Args) -> Result<()> {
                 rel_rmse: score.rel_rmse,
                 seconds: start.elapsed().as_secs_f64(),
             });
+            // Every row so far, so a run cut short keeps what it finished.
+            write_rows(&run.path("lights.csv"), &rows)?;
             eprintln!("frame {} {} orders {orders}: done ({:.0} s)", images.frame, model.name(), run.seconds());
         }
     }
-    write_rows(&run.path("lights.csv"), &rows)?;
     let table = markdown_table(
         &[
             "frame",

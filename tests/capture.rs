@@ -630,4 +630,30 @@ fn made_capture_writes_a_capture_that_reads_back() {
     let lit: Vec<f64> = made.views.iter().map(|m| frames::read(m, &[0]).unwrap()[0].data[31 * 47 + 23]).collect();
     assert!(lit.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {lit:?}");
     assert_ne!(lit[..], middles[..3], "the lights' places changed nothing");
+    // made_lights fits the lighting of a made capture's truth and scores its
+    // held-out camera; a capture no made_capture wrote is refused.
+    let made_lights = |data: &std::path::Path, models: &str, out: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_made_lights"))
+            .arg("--data")
+            .arg(data)
+            .args(["--frames", "0", "--orders", "1", "--models", models, "--out"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let lights_out = dir.join("lights");
+    let refused = made_lights(&dir.join("left"), "single", &lights_out);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("not a made capture"), "{err}");
+    let refused = made_lights(&moved.join("ambient_0"), "multiple", &lights_out);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("--orders 1"), "{err}");
+    assert!(!lights_out.exists(), "bad options are refused before any output");
+    let ok = made_lights(&moved.join("ambient_0"), "single,emission-absorption", &lights_out);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let csv = std::fs::read_to_string(lights_out.join("lights.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    assert!(rows[0].starts_with("0,single,1,") && rows[1].starts_with("0,emission-absorption,0,"), "{csv}");
+    assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
 }
