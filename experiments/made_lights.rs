@@ -42,6 +42,10 @@ struct Args {
     /// Scattering orders of multiple scattering's renders: the fit's (3) and the truth's (8) by default.
     #[arg(long, value_delimiter = ',', default_value = "3,8")]
     orders: Vec<u32>,
+    /// Fit settings (JSON; fields not given keep their defaults), for studies: the image model and the
+    /// orders come from `--models` and `--orders`, and the cameras are never aligned.
+    #[arg(long)]
+    fit_settings: Option<PathBuf>,
     /// Output directory: lights.csv, summary.md, manifest.json.
     #[arg(long)]
     out: PathBuf,
@@ -81,7 +85,10 @@ fn run(args: Args) -> Result<()> {
     if args.frames.is_empty() || args.orders.is_empty() || args.models.is_empty() {
         return Err(Error("--frames, --models and --orders: give at least one each".into()));
     }
-    let defaults = FitSettings::default();
+    let defaults = match &args.fit_settings {
+        Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
+        None => FitSettings::default(),
+    };
     // Each arm's settings and its orders (0: emission-absorption), all checked before any work.
     let mut arms = Vec::new();
     for &model in &args.models {
