@@ -15,9 +15,8 @@
 use clap::Parser;
 use dualphoton::capture::calibration;
 use dualphoton::capture::density::plume_in_box;
-use dualphoton::capture::fit::{fit_lighting, render_view, training_rmse};
-use dualphoton::capture::frame::{read, Roles};
-use dualphoton::capture::protocol::{Protocol, Score};
+use dualphoton::capture::fit::{fit_lighting, training_rmse};
+use dualphoton::capture::frame::{held_out_view, read, Roles};
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
@@ -85,10 +84,7 @@ fn run(args: Args) -> Result<()> {
     if args.frames.is_empty() || args.orders.is_empty() || args.models.is_empty() {
         return Err(Error("--frames, --models and --orders: give at least one each".into()));
     }
-    let defaults = match &args.fit_settings {
-        Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
-        None => FitSettings::default(),
-    };
+    let defaults = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
     // Each arm's settings and its orders (0: emission-absorption), all checked before any work.
     let mut arms = Vec::new();
     for &model in &args.models {
@@ -121,9 +117,7 @@ fn run(args: Args) -> Result<()> {
             let start = std::time::Instant::now();
             let training = &images.training.images[0];
             let fit = fit_lighting(&images.training.cameras, training, smoke_box, density.clone(), settings)?;
-            let camera = &capture.views[held_out].camera;
-            let protocol = Protocol::for_size(camera.width, camera.height);
-            let score = Score::of(&protocol.view(&render_view(&fit, camera)), &protocol.view(&images.held_out[0]));
+            let score = held_out_view(&capture, held_out, &fit, &images.held_out[0])?.score;
             let join = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(";");
             let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();
             rows.push(Row {

@@ -82,10 +82,7 @@ fn main() -> std::process::ExitCode {
 fn run(args: Args) -> Result<()> {
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
-    let fit_settings = match &args.fit_settings {
-        Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--fit-settings: {e}")))?,
-        None => FitSettings::default(),
-    };
+    let fit_settings = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
     let dropped = args.drop.iter().map(|name| capture.view(name)).collect::<Result<Vec<usize>>>()?;
     let training: Vec<usize> = (0..capture.views.len())
         .filter(|&v| v != held_out && !capture.views[v].held_out && !dropped.contains(&v))

@@ -331,10 +331,7 @@ fn fit(a: FitArgs) -> Result<()> {
             Some(corners) => Some(dualphoton::capture::box_of(corners).map_err(|e| Error(format!("--box: {e}")))?),
             None => None,
         };
-        let settings = match &a.study {
-            Some(path) => FitSettings::read(path).map_err(|e| Error(format!("--study: {e}")))?,
-            None => FitSettings::default(),
-        };
+        let settings = FitSettings::read_option(a.study.as_deref(), "--study")?;
         let settings = FitSettings { seed: a.seed.unwrap_or(settings.seed), ..settings };
         return dualphoton::capture::outputs::fit_and_write(
             capture,

@@ -170,22 +170,30 @@ pub fn fit_frame(
         fixed.as_ref(),
         progress,
     )?;
-    let mut held_out = Vec::new();
-    for (&v, truth) in roles.held_out.iter().zip(&images.held_out) {
-        let camera = &capture.views[v].camera;
-        let start = Instant::now();
-        let prediction = render_view(&fitted, camera);
-        let render_s = start.elapsed().as_secs_f64();
-        if prediction.data.iter().any(|x| !x.is_finite()) {
-            return Err(Error(format!("camera {}: the rendered view is not finite", capture.views[v].name)));
-        }
-        let protocol = Protocol::for_size(camera.width, camera.height);
-        let (seen, photographed) = (protocol.view(&prediction), protocol.view(truth));
-        let score = Score::of(&seen, &photographed);
-        let oracle = Oracle::of(&seen, &photographed);
-        let [_, _, cx, cy] = camera.intrinsics();
-        let aligned = Aligned::of(&prediction, [cx, cy], &protocol, &photographed);
-        held_out.push(HeldOutView { view: v, prediction, score, oracle, aligned, render_s });
-    }
+    let held_out = roles
+        .held_out
+        .iter()
+        .zip(&images.held_out)
+        .map(|(&v, truth)| held_out_view(capture, v, &fitted, truth))
+        .collect::<Result<Vec<_>>>()?;
     Ok(FrameFit { fit: fitted, held_out })
+}
+
+/// Held-out camera `v` of `capture` rendered from `fitted` at the capture's
+/// resolution and scored against its photograph `truth` under the field's protocol.
+pub fn held_out_view(capture: &Capture, v: usize, fitted: &Fit, truth: &Image) -> Result<HeldOutView> {
+    let camera = &capture.views[v].camera;
+    let start = Instant::now();
+    let prediction = render_view(fitted, camera);
+    let render_s = start.elapsed().as_secs_f64();
+    if prediction.data.iter().any(|x| !x.is_finite()) {
+        return Err(Error(format!("camera {}: the rendered view is not finite", capture.views[v].name)));
+    }
+    let protocol = Protocol::for_size(camera.width, camera.height);
+    let (seen, photographed) = (protocol.view(&prediction), protocol.view(truth));
+    let score = Score::of(&seen, &photographed);
+    let oracle = Oracle::of(&seen, &photographed);
+    let [_, _, cx, cy] = camera.intrinsics();
+    let aligned = Aligned::of(&prediction, [cx, cy], &protocol, &photographed);
+    Ok(HeldOutView { view: v, prediction, score, oracle, aligned, render_s })
 }

@@ -286,6 +286,15 @@ impl FitSettings {
         Ok(settings)
     }
 
+    /// The settings of the file a command-line `option` names, checked, its
+    /// errors prefixed by the option; the defaults where none is given.
+    pub fn read_option(path: Option<&std::path::Path>, option: &str) -> Result<FitSettings> {
+        match path {
+            Some(path) => FitSettings::read(path).map_err(|e| Error(format!("{option}: {e}"))),
+            None => Ok(FitSettings::default()),
+        }
+    }
+
     /// One-line errors for settings no fit can run with.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str| Err(Error(format!("fit settings: {what}")));
