@@ -26,7 +26,7 @@ use super::density::{
 };
 use super::lighting::{candidate_lights, fit_gains, fit_lights, light_share, place_lights, weights_of};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
-use super::priors::{smoothness, sparsity};
+use super::priors::{smoothness, sparsity, total_variation};
 use super::settings::{FitSettings, ImageModel};
 use crate::error::{Error, Result};
 use crate::grad::loss::mse;
@@ -55,6 +55,8 @@ pub struct FitRow {
     pub smoothness: f64,
     /// The sparsity term.
     pub sparsity: f64,
+    /// The total-variation term.
+    pub total_variation: f64,
     /// Seconds since the fit began.
     pub seconds: f64,
 }
@@ -374,8 +376,9 @@ impl<'a> FrameFit<'a> {
         self.last = Some(frozen.images.clone());
         let (smooth, smooth_grad) = smoothness(density, hull, settings.smoothness, self.smoothness_axes);
         let (sparse, sparse_grad) = sparsity(density, hull, settings.sparsity);
+        let (tv, tv_grad) = total_variation(density, hull, settings.total_variation);
         let grad: Vec<f64> = (0..density.len())
-            .map(|v| if hull[v] { reverse.grad[v] + smooth_grad[v] + sparse_grad[v] } else { 0.0 })
+            .map(|v| if hull[v] { reverse.grad[v] + smooth_grad[v] + sparse_grad[v] + tv_grad[v] } else { 0.0 })
             .collect();
         if grad.iter().any(|g| !g.is_finite()) {
             return Err(Error(format!("stage {stage}, update {update}: the gradient is not finite")));
@@ -386,6 +389,7 @@ impl<'a> FrameFit<'a> {
             image_mse: reverse.loss,
             smoothness: smooth,
             sparsity: sparse,
+            total_variation: tv,
             seconds: 0.0,
         };
         Ok((grad, row))

@@ -88,6 +88,9 @@ pub struct FitSettings {
     /// squared error. Off: on the settings study's frames 0.0001 changed
     /// nothing and 0.001 lost 0.7-1.4 dB on the scoring camera.
     pub sparsity: f64,
+    /// Weight of the total-variation term ([`super::priors::total_variation`]) against the
+    /// images' mean squared error. Off by default.
+    pub total_variation: f64,
     /// Optical depth across the hull's mean chord at the start. On the
     /// settings study's frames (docs/studies/real_settings.md) 1 and 2 scored best
     /// on the scoring camera, within 0.05 dB of each other for multiple
@@ -242,6 +245,7 @@ impl Default for FitSettings {
             smoothness: 0.001,
             horizontal_smoothness: 1.0,
             sparsity: 0.0,
+            total_variation: 0.0,
             start_depth: 1.0,
             start_shape: StartShape::Even,
             refit_every: 10,
@@ -325,6 +329,9 @@ impl FitSettings {
         if !(self.sparsity.is_finite() && self.sparsity >= 0.0) {
             return bad("sparsity must be finite and >= 0");
         }
+        if !(self.total_variation.is_finite() && self.total_variation >= 0.0) {
+            return bad("total_variation must be finite and >= 0");
+        }
         if !(self.start_depth.is_finite() && self.start_depth > 0.0) {
             return bad("start_depth must be finite and > 0");
         }
@@ -399,6 +406,7 @@ mod tests {
                     settings.horizontal_smoothness.to_string() == n["horizontal_".len()..]
                 }
                 n if n.starts_with("sparsity_") => settings.sparsity.to_string() == n["sparsity_".len()..],
+                n if n.starts_with("tv_") => settings.total_variation.to_string() == n["tv_".len()..],
                 n if n.starts_with("g_") => settings.g.to_string() == n["g_".len()..],
                 n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
                 "gains" => settings.gains,
