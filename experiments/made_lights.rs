@@ -6,6 +6,10 @@
 //! emission and gains). Then the held-out camera, rendered and scored as
 //! `experiment_real` scores it.
 //!
+//! With `--blur`, the truth's density is also held blurred (a Gaussian of
+//! so many voxels): how much of the held-out score lives in the density's
+//! fine detail, which four views resolve least.
+//!
 //! Why: on a made capture the fit misplaces one of the truth's lights. With
 //! the truth's density, whether the lights come back says whether the
 //! training views can tell them apart, or whether the density the fit
@@ -21,6 +25,7 @@ use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
+use dualphoton::volume::blur::gaussian_blur;
 use serde::Serialize;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -41,6 +46,9 @@ struct Args {
     /// Scattering orders of multiple scattering's renders: the fit's (3) and the truth's (8) by default.
     #[arg(long, value_delimiter = ',', default_value = "3,8")]
     orders: Vec<u32>,
+    /// Widths (voxels, standard deviation) of a Gaussian blur of the truth's density, each an arm; 0: as it is.
+    #[arg(long, value_delimiter = ',', default_value = "0")]
+    blur: Vec<f64>,
     /// Fit settings (JSON; fields not given keep their defaults), for studies: the image model and the
     /// orders come from `--models` and `--orders`, and the cameras are never aligned.
     #[arg(long)]
@@ -57,6 +65,9 @@ struct Row {
     model: String,
     /// Most scattering events on a light path (0: emission-absorption, no lights).
     orders: u32,
+    /// The width of the Gaussian blur of the truth's density (voxels; 0: none).
+    #[serde(serialize_with = "fmt::f1")]
+    blur_voxels: f64,
     /// The candidates' intensities (`;`-separated, in `candidate_lights`' order).
     lights: String,
     #[serde(serialize_with = "fmt::e6")]
@@ -81,8 +92,11 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> Result<()> {
-    if args.frames.is_empty() || args.orders.is_empty() || args.models.is_empty() {
-        return Err(Error("--frames, --models and --orders: give at least one each".into()));
+    if args.frames.is_empty() || args.orders.is_empty() || args.models.is_empty() || args.blur.is_empty() {
+        return Err(Error("--frames, --models, --orders and --blur: give at least one each".into()));
+    }
+    if let Some(b) = args.blur.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
+        return Err(Error(format!("--blur {b}: a width must be finite and >= 0")));
     }
     let defaults = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
     // Each arm's settings and its orders (0: emission-absorption), all checked before any work.
@@ -110,13 +124,14 @@ fn run(args: Args) -> Result<()> {
     let frames = read(&capture, &roles, &args.frames, defaults.factor)?;
     let mut rows = Vec::new();
     for images in &frames {
-        let density =
+        let truth =
             plume_in_box(smoke_box.0, smoke_box.1, res, seed.wrapping_add(images.frame as u64), defaults.start_depth);
-        for (settings, orders) in &arms {
+        for ((settings, orders), &blur) in arms.iter().flat_map(|arm| args.blur.iter().map(move |b| (arm, b))) {
+            let density = gaussian_blur(&truth, blur);
             let (model, orders) = (settings.model, *orders);
             let start = std::time::Instant::now();
             let training = &images.training.images[0];
-            let fit = fit_lighting(&images.training.cameras, training, smoke_box, density.clone(), settings)?;
+            let fit = fit_lighting(&images.training.cameras, training, smoke_box, density, settings)?;
             let score = held_out_view(&capture, held_out, &fit, &images.held_out[0])?.score;
             let join = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(";");
             let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();
@@ -124,6 +139,7 @@ fn run(args: Args) -> Result<()> {
                 frame: images.frame,
                 model: model.name().into(),
                 orders,
+                blur_voxels: blur,
                 lights: join(&lights),
                 emission: fit.scene.medium.emission,
                 light_share: fit.light_share,
@@ -135,7 +151,12 @@ fn run(args: Args) -> Result<()> {
             });
             // Every row so far, so a run cut short keeps what it finished.
             write_rows(&run.path("lights.csv"), &rows)?;
-            eprintln!("frame {} {} orders {orders}: done ({:.0} s)", images.frame, model.name(), run.seconds());
+            eprintln!(
+                "frame {} {} orders {orders} blur {blur}: done ({:.0} s)",
+                images.frame,
+                model.name(),
+                run.seconds()
+            );
         }
     }
     let table = markdown_table(
@@ -143,6 +164,7 @@ fn run(args: Args) -> Result<()> {
             "frame",
             "model",
             "orders",
+            "blur (voxels)",
             "lights (candidates' order)",
             "emission",
             "lights' share",
@@ -157,6 +179,7 @@ fn run(args: Args) -> Result<()> {
                 r.frame.to_string(),
                 r.model.clone(),
                 r.orders.to_string(),
+                format!("{}", r.blur_voxels),
                 r.lights.clone(),
                 format!("{:.4}", r.emission),
                 opt(r.light_share, 3),

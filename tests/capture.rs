@@ -648,12 +648,21 @@ fn made_capture_writes_a_capture_that_reads_back() {
     let refused = made_lights(&moved.join("ambient_0"), "multiple", &lights_out);
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("--orders 1"), "{err}");
+    let refused = std::process::Command::new(env!("CARGO_BIN_EXE_made_lights"))
+        .arg("--data")
+        .arg(moved.join("ambient_0"))
+        .args(["--blur", "1,-1", "--out"])
+        .arg(&lights_out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("--blur -1"), "{err}");
     assert!(!lights_out.exists(), "bad options are refused before any output");
     let ok = made_lights(&moved.join("ambient_0"), "single,emission-absorption", &lights_out);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let csv = std::fs::read_to_string(lights_out.join("lights.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().skip(1).collect();
     assert_eq!(rows.len(), 2, "{csv}");
-    assert!(rows[0].starts_with("0,single,1,") && rows[1].starts_with("0,emission-absorption,0,"), "{csv}");
+    assert!(rows[0].starts_with("0,single,1,0.0,") && rows[1].starts_with("0,emission-absorption,0,0.0,"), "{csv}");
     assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
 }
