@@ -88,9 +88,9 @@ pub fn sparsity(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f6
 /// over voxels of `sqrt(|g|^2 + (eps B)^2) - eps B`, `g` the differences of
 /// `h rho` to the voxel's next neighbour along each axis (0 past the grid's
 /// edge), `B` the mean of `h rho` over the hull, `eps` [`TV_CORNER`]. Unlike
-/// the squared differences of [`smoothness`], it charges a jump by its
-/// height, not its square: it keeps the smoke's edges and removes what
-/// spreads thinly, as the ghosts four views leave along their rays do
+/// the squared differences of [`smoothness`], it charges a rise by its
+/// height, not its square: meant to keep the smoke's edges and remove what
+/// spreads thinly, as the ghosts few views leave along their rays do
 /// (sparse-view tomography's usual prior). Like the others it does not
 /// change when the density is scaled.
 pub fn total_variation(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
