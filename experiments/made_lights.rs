@@ -6,9 +6,12 @@
 //! emission and gains). Then the held-out camera, rendered and scored as
 //! `experiment_real` scores it.
 //!
-//! With `--blur`, the truth's density is also held blurred (a Gaussian of
-//! so many voxels): how much of the held-out score lives in the density's
-//! fine detail, which four views resolve least.
+//! With `--blur`, the density is also held blurred (a Gaussian of so many
+//! voxels): how much of the held-out score lives in the density's fine
+//! detail, which four views resolve least. With `--fitted`, the density
+//! held is the one a fit reaches (each arm's settings, the cameras as
+//! calibrated) instead of the truth's: whether its fine detail helps the
+//! held-out view or harms it.
 //!
 //! Why: on a made capture the fit misplaces one of the truth's lights. With
 //! the truth's density, whether the lights come back says whether the
@@ -19,7 +22,7 @@
 use clap::Parser;
 use dualphoton::capture::calibration;
 use dualphoton::capture::density::plume_in_box;
-use dualphoton::capture::fit::{fit_lighting, training_rmse};
+use dualphoton::capture::fit::{fit, fit_lighting, training_rmse};
 use dualphoton::capture::frame::{held_out_view, read, Roles};
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::error::{Error, Result};
@@ -46,9 +49,12 @@ struct Args {
     /// Scattering orders of multiple scattering's renders: the fit's (3) and the truth's (8) by default.
     #[arg(long, value_delimiter = ',', default_value = "3,8")]
     orders: Vec<u32>,
-    /// Widths (voxels, standard deviation) of a Gaussian blur of the truth's density, each an arm; 0: as it is.
+    /// Widths (voxels, standard deviation) of a Gaussian blur of the density, each an arm; 0: as it is.
     #[arg(long, value_delimiter = ',', default_value = "0")]
     blur: Vec<f64>,
+    /// Hold the density each arm's fit reaches (the cameras as calibrated) instead of the truth's.
+    #[arg(long)]
+    fitted: bool,
     /// Fit settings (JSON; fields not given keep their defaults), for studies: the image model and the
     /// orders come from `--models` and `--orders`, and the cameras are never aligned.
     #[arg(long)]
@@ -65,7 +71,7 @@ struct Row {
     model: String,
     /// Most scattering events on a light path (0: emission-absorption, no lights).
     orders: u32,
-    /// The width of the Gaussian blur of the truth's density (voxels; 0: none).
+    /// The width of the Gaussian blur of the density (voxels; 0: none).
     #[serde(serialize_with = "fmt::f1")]
     blur_voxels: f64,
     /// The candidates' intensities (`;`-separated, in `candidate_lights`' order).
@@ -83,6 +89,7 @@ struct Row {
     psnr_db: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     rel_rmse: Option<f64>,
+    /// Seconds for the row's lighting and score, plus its arm's fit with `--fitted`.
     #[serde(serialize_with = "fmt::f1")]
     seconds: f64,
 }
@@ -126,37 +133,46 @@ fn run(args: Args) -> Result<()> {
     for images in &frames {
         let truth =
             plume_in_box(smoke_box.0, smoke_box.1, res, seed.wrapping_add(images.frame as u64), defaults.start_depth);
-        for ((settings, orders), &blur) in arms.iter().flat_map(|arm| args.blur.iter().map(move |b| (arm, b))) {
-            let density = gaussian_blur(&truth, blur);
-            let (model, orders) = (settings.model, *orders);
+        let training = &images.training.images[0];
+        for (settings, orders) in &arms {
             let start = std::time::Instant::now();
-            let training = &images.training.images[0];
-            let fit = fit_lighting(&images.training.cameras, training, smoke_box, density, settings)?;
-            let score = held_out_view(&capture, held_out, &fit, &images.held_out[0])?.score;
-            let join = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(";");
-            let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();
-            rows.push(Row {
-                frame: images.frame,
-                model: model.name().into(),
-                orders,
-                blur_voxels: blur,
-                lights: join(&lights),
-                emission: fit.scene.medium.emission,
-                light_share: fit.light_share,
-                gains: join(&fit.gains),
-                train_rmse_codes: training_rmse(&fit, training) * 255.0,
-                psnr_db: score.psnr,
-                rel_rmse: score.rel_rmse,
-                seconds: start.elapsed().as_secs_f64(),
-            });
-            // Every row so far, so a run cut short keeps what it finished.
-            write_rows(&run.path("lights.csv"), &rows)?;
-            eprintln!(
-                "frame {} {} orders {orders} blur {blur}: done ({:.0} s)",
-                images.frame,
-                model.name(),
-                run.seconds()
-            );
+            let held = if args.fitted {
+                fit(&images.training.cameras, training, smoke_box, settings, None, &mut |_| {})?.scene.density
+            } else {
+                truth.clone()
+            };
+            let fit_s = start.elapsed().as_secs_f64();
+            for &blur in &args.blur {
+                let density = gaussian_blur(&held, blur);
+                let (model, orders) = (settings.model, *orders);
+                let start = std::time::Instant::now();
+                let fit = fit_lighting(&images.training.cameras, training, smoke_box, density, settings)?;
+                let score = held_out_view(&capture, held_out, &fit, &images.held_out[0])?.score;
+                let join = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(";");
+                let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();
+                rows.push(Row {
+                    frame: images.frame,
+                    model: model.name().into(),
+                    orders,
+                    blur_voxels: blur,
+                    lights: join(&lights),
+                    emission: fit.scene.medium.emission,
+                    light_share: fit.light_share,
+                    gains: join(&fit.gains),
+                    train_rmse_codes: training_rmse(&fit, training) * 255.0,
+                    psnr_db: score.psnr,
+                    rel_rmse: score.rel_rmse,
+                    seconds: fit_s + start.elapsed().as_secs_f64(),
+                });
+                // Every row so far, so a run cut short keeps what it finished.
+                write_rows(&run.path("lights.csv"), &rows)?;
+                eprintln!(
+                    "frame {} {} orders {orders} blur {blur}: done ({:.0} s)",
+                    images.frame,
+                    model.name(),
+                    run.seconds()
+                );
+            }
         }
     }
     let table = markdown_table(
@@ -192,7 +208,11 @@ fn run(args: Args) -> Result<()> {
     );
     std::fs::write(
         run.path("summary.md"),
-        format!("# The lighting of the true density\n\nHeld-out camera: {}.\n\n{table}", capture.views[held_out].name),
+        format!(
+            "# The lighting of the {} density\n\nHeld-out camera: {}.\n\n{table}",
+            if args.fitted { "fitted" } else { "true" },
+            capture.views[held_out].name
+        ),
     )?;
     run.write_manifest(&args)
 }

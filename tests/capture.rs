@@ -660,9 +660,28 @@ fn made_capture_writes_a_capture_that_reads_back() {
     assert!(!lights_out.exists(), "bad options are refused before any output");
     let ok = made_lights(&moved.join("ambient_0"), "single,emission-absorption", &lights_out);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
-    let csv = std::fs::read_to_string(lights_out.join("lights.csv")).unwrap();
+    let truth_csv = std::fs::read_to_string(lights_out.join("lights.csv")).unwrap();
+    let csv = truth_csv.clone();
     let rows: Vec<&str> = csv.lines().skip(1).collect();
     assert_eq!(rows.len(), 2, "{csv}");
     assert!(rows[0].starts_with("0,single,1,0.0,") && rows[1].starts_with("0,emission-absorption,0,0.0,"), "{csv}");
+    assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
+    // With --fitted it holds the density a fit reaches, as it is and blurred.
+    let fitted_out = dir.join("fitted");
+    let ok = std::process::Command::new(env!("CARGO_BIN_EXE_made_lights"))
+        .arg("--data")
+        .arg(moved.join("ambient_0"))
+        .args(["--frames", "0", "--models", "emission-absorption", "--fitted", "--blur", "0,1", "--out"])
+        .arg(&fitted_out)
+        .output()
+        .unwrap();
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let csv = std::fs::read_to_string(fitted_out.join("lights.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    assert!(rows[0].starts_with("0,emission-absorption,0,0.0,") && rows[1].starts_with("0,emission-absorption,0,1.0,"));
+    // Every column but the time: the fit's density is not the truth's.
+    let but_time = |row: &str| row.rsplit_once(',').unwrap().0.to_string();
+    assert_ne!(but_time(rows[0]), but_time(truth_csv.lines().nth(2).unwrap()), "--fitted held the truth");
     assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
 }
