@@ -142,9 +142,9 @@ fn run(args: Args) -> Result<()> {
                 truth.clone()
             };
             let fit_s = start.elapsed().as_secs_f64();
+            let (model, orders) = (settings.model, *orders);
             for &blur in &args.blur {
                 let density = gaussian_blur(&held, blur);
-                let (model, orders) = (settings.model, *orders);
                 let start = std::time::Instant::now();
                 let fit = fit_lighting(&images.training.cameras, training, smoke_box, density, settings)?;
                 let score = held_out_view(&capture, held_out, &fit, &images.held_out[0])?.score;

@@ -632,49 +632,43 @@ fn made_capture_writes_a_capture_that_reads_back() {
     assert_ne!(lit[..], middles[..3], "the lights' places changed nothing");
     // made_lights fits the lighting of a made capture's truth and scores its
     // held-out camera; a capture no made_capture wrote is refused.
-    let made_lights = |data: &std::path::Path, models: &str, out: &std::path::Path| {
+    let made_lights = |data: &std::path::Path, args: &[&str], out: &std::path::Path| {
         std::process::Command::new(env!("CARGO_BIN_EXE_made_lights"))
             .arg("--data")
             .arg(data)
-            .args(["--frames", "0", "--orders", "1", "--models", models, "--out"])
+            .args(args)
+            .arg("--out")
             .arg(out)
             .output()
             .unwrap()
     };
+    let tiny = |models| ["--frames", "0", "--orders", "1", "--models", models];
     let lights_out = dir.join("lights");
-    let refused = made_lights(&dir.join("left"), "single", &lights_out);
+    let refused = made_lights(&dir.join("left"), &tiny("single"), &lights_out);
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("not a made capture"), "{err}");
-    let refused = made_lights(&moved.join("ambient_0"), "multiple", &lights_out);
+    let refused = made_lights(&moved.join("ambient_0"), &tiny("multiple"), &lights_out);
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("--orders 1"), "{err}");
-    let refused = std::process::Command::new(env!("CARGO_BIN_EXE_made_lights"))
-        .arg("--data")
-        .arg(moved.join("ambient_0"))
-        .args(["--blur", "1,-1", "--out"])
-        .arg(&lights_out)
-        .output()
-        .unwrap();
+    let refused = made_lights(&moved.join("ambient_0"), &["--blur", "1,-1"], &lights_out);
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("--blur -1"), "{err}");
     assert!(!lights_out.exists(), "bad options are refused before any output");
-    let ok = made_lights(&moved.join("ambient_0"), "single,emission-absorption", &lights_out);
+    let ok = made_lights(&moved.join("ambient_0"), &tiny("single,emission-absorption"), &lights_out);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let truth_csv = std::fs::read_to_string(lights_out.join("lights.csv")).unwrap();
-    let csv = truth_csv.clone();
-    let rows: Vec<&str> = csv.lines().skip(1).collect();
-    assert_eq!(rows.len(), 2, "{csv}");
-    assert!(rows[0].starts_with("0,single,1,0.0,") && rows[1].starts_with("0,emission-absorption,0,0.0,"), "{csv}");
-    assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
+    let truth_rows: Vec<&str> = truth_csv.lines().skip(1).collect();
+    assert_eq!(truth_rows.len(), 2, "{truth_csv}");
+    let [single, absorption] = [truth_rows[0], truth_rows[1]];
+    assert!(
+        single.starts_with("0,single,1,0.0,") && absorption.starts_with("0,emission-absorption,0,0.0,"),
+        "{truth_csv}"
+    );
+    assert!(!truth_csv.to_lowercase().contains("nan") && !truth_csv.contains("inf"), "{truth_csv}");
     // With --fitted it holds the density a fit reaches, as it is and blurred.
     let fitted_out = dir.join("fitted");
-    let ok = std::process::Command::new(env!("CARGO_BIN_EXE_made_lights"))
-        .arg("--data")
-        .arg(moved.join("ambient_0"))
-        .args(["--frames", "0", "--models", "emission-absorption", "--fitted", "--blur", "0,1", "--out"])
-        .arg(&fitted_out)
-        .output()
-        .unwrap();
+    let args = ["--frames", "0", "--models", "emission-absorption", "--fitted", "--blur", "0,1"];
+    let ok = made_lights(&moved.join("ambient_0"), &args, &fitted_out);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let csv = std::fs::read_to_string(fitted_out.join("lights.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().skip(1).collect();
@@ -682,6 +676,6 @@ fn made_capture_writes_a_capture_that_reads_back() {
     assert!(rows[0].starts_with("0,emission-absorption,0,0.0,") && rows[1].starts_with("0,emission-absorption,0,1.0,"));
     // Every column but the time: the fit's density is not the truth's.
     let but_time = |row: &str| row.rsplit_once(',').unwrap().0.to_string();
-    assert_ne!(but_time(rows[0]), but_time(truth_csv.lines().nth(2).unwrap()), "--fitted held the truth");
+    assert_ne!(but_time(rows[0]), but_time(absorption), "--fitted held the truth");
     assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
 }

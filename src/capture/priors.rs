@@ -48,19 +48,26 @@ pub fn smoothness(density: &Grid<f64>, hull: &[bool], weight: f64, axes: [f64; 3
         }
     }
     // A = scale * sum with gradient `grad`; B = mean over the hull of h rho.
-    let h_mean = (h.x * h.y * h.z).cbrt();
-    let inside = hull.iter().filter(|&&x| x).count().max(1) as f64;
-    let b_sum: f64 = density.data.iter().zip(hull).filter(|(_, &x)| x).map(|(d, _)| d).sum();
-    let big_b = h_mean * b_sum / inside;
+    let (big_b, db) = hull_mean_depth(density, hull);
     if big_b <= 0.0 {
         return (0.0, vec![0.0; density.len()]);
     }
     let a_val = scale * sum;
-    let db = h_mean / inside;
     for (g, &x) in grad.iter_mut().zip(hull) {
         *g = weight * (*g / (big_b * big_b) - if x { 2.0 * a_val * db / big_b.powi(3) } else { 0.0 });
     }
     (weight * a_val / (big_b * big_b), grad)
+}
+
+/// `B`, the mean of `h rho` over the hull (h the voxels' geometric mean
+/// edge), and its derivative by the density of a voxel inside the hull:
+/// dividing by a power of it makes a prior scale-invariant.
+fn hull_mean_depth(density: &Grid<f64>, hull: &[bool]) -> (f64, f64) {
+    let h = density.voxel_size();
+    let h_mean = (h.x * h.y * h.z).cbrt();
+    let inside = hull.iter().filter(|&&x| x).count().max(1) as f64;
+    let b_sum: f64 = density.data.iter().zip(hull).filter(|(_, &x)| x).map(|(d, _)| d).sum();
+    (h_mean * b_sum / inside, h_mean / inside)
 }
 
 /// The sparsity term `weight * (mean rho)^2 / mean(rho^2)` over the hull
@@ -95,15 +102,15 @@ pub fn sparsity(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f6
 /// change when the density is scaled.
 pub fn total_variation(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64, Vec<f64>) {
     let mut grad = vec![0.0; density.len()];
-    let [nz, ny, nx] = density.shape;
-    let h = density.voxel_size();
-    let h_mean = (h.x * h.y * h.z).cbrt();
-    let inside = hull.iter().filter(|&&x| x).count().max(1) as f64;
-    let b_sum: f64 = density.data.iter().zip(hull).filter(|(_, &x)| x).map(|(d, _)| d).sum();
-    let big_b = h_mean * b_sum / inside;
-    if weight == 0.0 || big_b <= 0.0 {
+    if weight == 0.0 {
         return (0.0, grad);
     }
+    let (big_b, db) = hull_mean_depth(density, hull);
+    if big_b <= 0.0 {
+        return (0.0, grad);
+    }
+    let [nz, ny, nx] = density.shape;
+    let h = density.voxel_size();
     let corner = TV_CORNER * big_b;
     let n = density.len() as f64;
     // T, and dT/dB through the corner alone (the rest of dT goes to `grad`).
@@ -137,7 +144,6 @@ pub fn total_variation(density: &Grid<f64>, hull: &[bool], weight: f64) -> (f64,
     }
     let t = t_sum / n;
     let dt_db = dt_db_sum / n;
-    let db = h_mean / inside;
     for (g, &x) in grad.iter_mut().zip(hull) {
         let through_b = if x { (dt_db / big_b - t / (big_b * big_b)) * db } else { 0.0 };
         *g = weight * (*g / n / big_b + through_b);
