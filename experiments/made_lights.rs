@@ -146,7 +146,7 @@ fn run(args: Args) -> Result<()> {
             for &blur in &args.blur {
                 let density = gaussian_blur(&held, blur);
                 let start = std::time::Instant::now();
-                let fit = fit_lighting(&images.training.cameras, training, smoke_box, density, settings)?;
+                let fit = fit_lighting(&images.training.cameras, training, smoke_box, density, settings, None)?;
                 let score = held_out_view(&capture, held_out, &fit, &images.held_out[0])?.score;
                 let join = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(";");
                 let lights: Vec<f64> = fit.scene.lights.iter().map(|l| l.intensity).collect();

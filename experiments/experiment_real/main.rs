@@ -81,19 +81,15 @@ fn main() -> std::process::ExitCode {
 
 fn run(args: Args) -> Result<()> {
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
-    let held_out = held_out_camera(&capture, args.held_out.as_deref())?;
+    let roles = Roles::choose(&capture, args.held_out.as_deref(), &args.drop)?;
+    let held_out = roles.held_out[0];
     let fit_settings = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
-    let dropped = args.drop.iter().map(|name| capture.view(name)).collect::<Result<Vec<usize>>>()?;
-    let training: Vec<usize> = (0..capture.views.len())
-        .filter(|&v| v != held_out && !capture.views[v].held_out && !dropped.contains(&v))
-        .collect();
     if let Some(path) = &args.held_out_focal_lengths {
-        let k = held_out_zoom(&capture, path, &training, held_out)
+        let k = held_out_zoom(&capture, path, &roles.training, held_out)
             .map_err(|e| Error(format!("--held-out-focal-lengths: {e}")))?;
         eprintln!("held-out camera {}: focal lengths x {k:.4} (the camera file)", capture.views[held_out].name);
         capture.views[held_out].camera = capture.views[held_out].camera.zoom(k);
     }
-    let roles = Roles { training, held_out: vec![held_out] };
     frame::check(&capture, &roles, &args.frames, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
@@ -137,18 +133,6 @@ fn run(args: Args) -> Result<()> {
     }
     std::fs::write(run.path("summary.md"), md)?;
     run.write_manifest(&args)
-}
-
-/// The camera named `name`, else the calibration's one test camera.
-fn held_out_camera(capture: &Capture, name: Option<&str>) -> Result<usize> {
-    if let Some(name) = name {
-        return capture.view(name);
-    }
-    let tests: Vec<usize> = (0..capture.views.len()).filter(|&v| capture.views[v].held_out).collect();
-    match tests[..] {
-        [one] => Ok(one),
-        _ => Err(Error(format!("--held-out: the calibration marks {} test cameras; name one", tests.len()))),
-    }
 }
 
 /// The other camera whose viewing direction is closest to camera `held_out`'s.

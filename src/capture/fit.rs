@@ -126,18 +126,20 @@ pub fn fit(
 /// The lighting a fit would give a density held as it is: the lights'
 /// intensities, the emission and the gains from [`LIGHTING_ROUNDS`] of the
 /// refits a fit makes between its density's updates, each after a render
-/// of the scene as it then is; the training cameras as calibrated. Why:
-/// given a made capture's true density, it says whether the training
-/// views can tell the lights apart at all, apart from the density's fit.
+/// of the scene as it then is; the training cameras as calibrated, or
+/// corrected by `fixed`. Why: given a made capture's true density, it says
+/// whether the training views can tell the lights apart at all, apart from
+/// the density's fit; given any other density, what it is worth.
 pub fn fit_lighting(
     cameras: &[Camera],
     images: &[Image],
     smoke_box: (Vec3, Vec3),
     density: Grid<f64>,
     settings: &FitSettings,
+    fixed: Option<&Corrections>,
 ) -> Result<Fit> {
     settings.validate()?;
-    let mut state = FrameFit::new(cameras, images, smoke_box, settings, None)?;
+    let mut state = FrameFit::new(cameras, images, smoke_box, settings, fixed)?;
     state.scene.density = density;
     for _ in 0..LIGHTING_ROUNDS {
         state.scene.render.seed = settings.seed.wrapping_add(state.renders);
@@ -146,6 +148,33 @@ pub fn fit_lighting(
         // As on a fit's finest level: the gains too, the cameras held.
         state.refit_lighting(true)?;
     }
+    state.finish()
+}
+
+/// [`fit`]'s last stage alone, its density starting from `start` (sampled
+/// onto the finest level's grid, in its hull) instead of from a coarser
+/// level's: the finest level's updates, the lighting and gains refitted as
+/// on that level, the cameras corrected by `fixed` if given, else as
+/// calibrated (never aligned: there is no coarser stage to align them on).
+/// Why: a density another way gives (e.g. from neighbouring frames) is
+/// tried as where the fit of this frame's images starts.
+pub fn fit_from(
+    cameras: &[Camera],
+    images: &[Image],
+    smoke_box: (Vec3, Vec3),
+    start: Grid<f64>,
+    settings: &FitSettings,
+    fixed: Option<&Corrections>,
+    progress: &mut dyn FnMut(&FitRow),
+) -> Result<Fit> {
+    let settings = FitSettings { align: false, decoder: 0, ..settings.clone() };
+    settings.validate()?;
+    let mut state = FrameFit::new(cameras, images, smoke_box, &settings, fixed)?;
+    state.scene.density = start;
+    let finest = settings.updates.len() - 1;
+    // Numbered as a later stage (at least 1), so that it starts from the
+    // density held and its refits fit the gains, as a fit's last stage does.
+    state.stage(finest.max(1), Some(finest), settings.updates[finest], progress)?;
     state.finish()
 }
 
@@ -692,7 +721,7 @@ mod tests {
         truth.lights[0].intensity = 2.0;
         truth.lights[3].intensity = 1.0;
         let images = render_photon(&truth).images;
-        let done = fit_lighting(&cameras, &images, smoke_box, density.clone(), &settings).unwrap();
+        let done = fit_lighting(&cameras, &images, smoke_box, density.clone(), &settings, None).unwrap();
         assert_eq!(done.scene.density.data, density.data, "the density moved");
         let lights: Vec<f64> = done.scene.lights.iter().map(|l| l.intensity).collect();
         // A ball's views tell its lights apart by their shading alone: the
@@ -708,7 +737,7 @@ mod tests {
         assert!(error < 0.15 * scale, "RMSE {error} against the images' {scale}");
         let mut brighter = images.clone();
         brighter[1] = brighter[1].map(|v| 2.0 * v);
-        let done = fit_lighting(&cameras, &brighter, smoke_box, density, &settings).unwrap();
+        let done = fit_lighting(&cameras, &brighter, smoke_box, density, &settings, None).unwrap();
         assert!(done.gains[1] > 1.3 * done.gains[0].max(done.gains[2]), "gains {:?}", done.gains);
         let brighter_error = training_rmse(&done, &brighter);
         assert!(brighter_error < 2.0 * error, "RMSE {brighter_error}, against {error} at gains 1");

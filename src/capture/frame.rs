@@ -30,6 +30,32 @@ impl Roles {
         let (held_out, training) = (0..capture.views.len()).partition(|&v| capture.views[v].held_out);
         Roles { training, held_out }
     }
+
+    /// One held-out camera, the one named `held_out` (default: the
+    /// calibration's one test camera), and every other camera but the
+    /// `dropped` ones (and the calibration's other test cameras) training.
+    pub fn choose(capture: &Capture, held_out: Option<&str>, dropped: &[String]) -> Result<Roles> {
+        let held_out = match held_out {
+            Some(name) => capture.view(name)?,
+            None => {
+                let tests: Vec<usize> = (0..capture.views.len()).filter(|&v| capture.views[v].held_out).collect();
+                match tests[..] {
+                    [one] => one,
+                    _ => {
+                        return Err(Error(format!(
+                            "--held-out: the calibration marks {} test cameras; name one",
+                            tests.len()
+                        )))
+                    }
+                }
+            }
+        };
+        let dropped = dropped.iter().map(|name| capture.view(name)).collect::<Result<Vec<usize>>>()?;
+        let training = (0..capture.views.len())
+            .filter(|&v| v != held_out && !capture.views[v].held_out && !dropped.contains(&v))
+            .collect();
+        Ok(Roles { training, held_out: vec![held_out] })
+    }
 }
 
 /// A frame's images: the training cameras' at the working resolution, the

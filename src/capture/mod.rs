@@ -17,6 +17,7 @@
 //!   [`lights`] gives the image's derivatives in a light's place.
 //! - [`priors`] are what the fit asks of a density beside the images.
 //! - [`rig`] aligns the training cameras once for every frame of a capture.
+//! - [`temporal`] brings neighbouring frames' densities onto one frame's.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
 //!   downsampling, a fixed crop, PSNR and relative RMSE.
@@ -36,6 +37,7 @@ pub mod protocol;
 pub mod rig;
 pub mod scalarflow_cameras;
 pub mod settings;
+pub mod temporal;
 
 use crate::math::Vec3;
 use crate::scene::Camera;
