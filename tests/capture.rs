@@ -590,7 +590,7 @@ fn made_capture_writes_a_capture_that_reads_back() {
         std::process::Command::new(env!("CARGO_BIN_EXE_made_capture"))
             .arg("--like")
             .arg(&dir)
-            .args(["--frames", "2", "--res", "8", "--ambient-shares", shares, "--lights", lights])
+            .args(["--frames", "3", "--res", "8", "--ambient-shares", shares, "--lights", lights])
             .arg("--out")
             .arg(out)
             .output()
@@ -610,7 +610,7 @@ fn made_capture_writes_a_capture_that_reads_back() {
         assert_eq!(made.smoke_box, like.smoke_box);
         assert_eq!(made.views.len(), 3);
         for (m, l) in made.views.iter().zip(&like.views) {
-            assert_eq!((&m.name, &m.camera, m.held_out, m.frames.count()), (&l.name, &l.camera, l.held_out, 2));
+            assert_eq!((&m.name, &m.camera, m.held_out, m.frames.count()), (&l.name, &l.camera, l.held_out, 3));
             let images = frames::read(m, &[0, 1]).unwrap();
             for image in &images {
                 assert_eq!((image.width, image.height), (47, 63));
@@ -677,5 +677,45 @@ fn made_capture_writes_a_capture_that_reads_back() {
     // Every column but the time: the fit's density is not the truth's.
     let but_time = |row: &str| row.rsplit_once(',').unwrap().0.to_string();
     assert_ne!(but_time(rows[0]), but_time(absorption), "--fitted held the truth");
+    assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
+    // temporal_mean: a frame without neighbours enough is refused before
+    // any output; a frame with them gets every arm, the mean from all three.
+    let temporal = |args: &[&str], out: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_temporal_mean"))
+            .arg("--data")
+            .arg(moved.join("ambient_0"))
+            .args(args)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let temporal_out = dir.join("temporal");
+    let refused = temporal(&["--frames", "0", "--reach", "1"], &temporal_out);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("--frames 0: needs 1 frames on each side"), "{err}");
+    assert!(!temporal_out.exists(), "a frame at the clip's edge is refused before any output");
+    // A small grid and short fits: the rig's path, each frame's fit, the mean and the refit all run.
+    let small = dir.join("small.json");
+    std::fs::write(&small, r#"{"resolution": 16, "updates": [10, 10, 20]}"#).unwrap();
+    let args = ["--frames", "1", "--reach", "1", "--models", "emission-absorption", "--fit-settings"];
+    let ok = temporal(&[&args[..], &[small.to_str().unwrap()]].concat(), &temporal_out);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let csv = std::fs::read_to_string(temporal_out.join("temporal.csv")).unwrap();
+    let rows: Vec<Vec<String>> = csv::Reader::from_reader(csv.as_bytes())
+        .records()
+        .map(|r| r.unwrap().iter().map(String::from).collect())
+        .collect();
+    let arms: Vec<(&str, &str)> = rows.iter().map(|r| (r[2].as_str(), r[3].as_str())).collect();
+    assert_eq!(
+        arms,
+        [("fit", "1"), ("alone, held", "1"), ("mean of 3, held", "0;1;2"), ("refit from mean of 3", "0;1;2")],
+        "{csv}"
+    );
+    assert_eq!(rows[2][4].split(';').count(), 2, "a shift per neighbour: {csv}");
+    // The held density's lighting, fitted again, explains the training views
+    // about as its fit did.
+    let rmse = |r: &[String]| r[5].parse::<f64>().unwrap();
+    assert!((rmse(&rows[1]) - rmse(&rows[0])).abs() <= 0.2 * rmse(&rows[0]) + 0.05, "{csv}");
     assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
 }
