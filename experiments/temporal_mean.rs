@@ -79,7 +79,8 @@ struct Row {
     psnr_db: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     rel_rmse: Option<f64>,
-    /// The arm's own seconds (its lighting or refit and the held-out render).
+    /// The arm's own seconds: its lighting or its refit, and the held-out
+    /// render (for `fit`, the render alone).
     #[serde(serialize_with = "fmt::f1")]
     seconds: f64,
 }
@@ -221,11 +222,14 @@ fn summary(rows: &[Row], capture: &Capture, roles: &Roles) -> String {
                 format!("{:.2}", mean(mine.iter().filter_map(|r| r.psnr_db).collect())),
                 format!("{:.1}", 100.0 * mean(mine.iter().filter_map(|r| r.rel_rmse).collect())),
                 format!("{:.2}", mean(mine.iter().map(|r| r.train_rmse_codes).collect())),
-                joined(mine.iter().map(|r| format!("{}: {:.2}", r.frame, r.psnr_db.unwrap_or(f64::NAN)))),
+                mine.iter()
+                    .map(|r| format!("{}: {:.2}", r.frame, r.psnr_db.unwrap_or(f64::NAN)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
             ]
         }),
     );
-    let names = |vs: &[usize]| joined(vs.iter().map(|&v| capture.views[v].name.clone()));
+    let names = |vs: &[usize]| vs.iter().map(|&v| capture.views[v].name.as_str()).collect::<Vec<_>>().join(", ");
     format!(
         "# Neighbouring frames' densities\n\nTraining cameras {}; held-out camera {}. Means over frames:\n\n{table}",
         names(&roles.training),

@@ -19,6 +19,9 @@ pub const ACROSS_VOXELS: isize = 2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shift(pub [f64; 3]);
 
+/// The two voxels along one axis a shifted sample lies between, and their weights.
+type Taps = [(usize, f64); 2];
+
 /// `grid` sampled at every voxel `p + shift` (linearly between voxels
 /// along each axis), with a weight per voxel: 1 where the sample lies in
 /// the grid, 0 where it falls outside (its value then 0).
@@ -28,7 +31,7 @@ pub fn shifted(grid: &Grid<f64>, shift: Shift) -> (Vec<f64>, Vec<f64>) {
     let mut values = vec![0.0; grid.len()];
     let mut weights = vec![0.0; grid.len()];
     // Per axis and index: the two neighbours and their weights, or none.
-    let taps: Vec<Vec<Option<[(usize, f64); 2]>>> = (0..3)
+    let taps: Vec<Vec<Option<Taps>>> = (0..3)
         .map(|a| {
             (0..n[a])
                 .map(|i| {
@@ -49,12 +52,12 @@ pub fn shifted(grid: &Grid<f64>, shift: Shift) -> (Vec<f64>, Vec<f64>) {
         let Some(tk) = taps[0][k] else { continue };
         for j in 0..ny {
             let Some(tj) = taps[1][j] else { continue };
-            for i in 0..nx {
-                let Some(ti) = taps[2][i] else { continue };
+            for (i, ti) in taps[2].iter().enumerate() {
+                let Some(ti) = ti else { continue };
                 let mut v = 0.0;
                 for &(kk, wk) in &tk {
                     for &(jj, wj) in &tj {
-                        for &(ii, wi) in &ti {
+                        for &(ii, wi) in ti {
                             let w = wk * wj * wi;
                             if w != 0.0 {
                                 v += w * grid.data[grid.index(kk, jj, ii)];
