@@ -21,7 +21,7 @@
 
 use clap::Parser;
 use dualphoton::capture::calibration;
-use dualphoton::capture::density::plume_in_box;
+use dualphoton::capture::density::{made_truth, plume_in_box};
 use dualphoton::capture::fit::{fit, fit_lighting, training_rmse};
 use dualphoton::capture::frame::{held_out_view, read, Roles};
 use dualphoton::capture::settings::{FitSettings, ImageModel};
@@ -30,8 +30,7 @@ use dualphoton::experiment::{self, Run};
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
 use dualphoton::volume::blur::gaussian_blur;
 use serde::Serialize;
-use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Parser, Serialize)]
 #[command(about = "The lighting a made capture's true density gives, and its held-out score")]
@@ -121,7 +120,7 @@ fn run(args: Args) -> Result<()> {
             arms.push((settings, shown));
         }
     }
-    let (res, seed) = truth_of(&args.data)?;
+    let (res, seed) = made_truth(&args.data)?;
     let capture = calibration::load(&calibration::locate(&args.data))?;
     let roles = Roles::of(&capture);
     let &held_out = roles.held_out.first().ok_or_else(|| Error("the capture has no held-out camera".into()))?;
@@ -215,18 +214,4 @@ fn run(args: Args) -> Result<()> {
         ),
     )?;
     run.write_manifest(&args)
-}
-
-/// The truth's plume (grid edge and seed of frame 0) from the manifest
-/// `made_capture` wrote in the folder above the capture.
-fn truth_of(data: &Path) -> Result<(usize, u64)> {
-    let folder = if data.is_dir() { data } else { data.parent().unwrap_or(Path::new(".")) };
-    let path = folder.join("..").join("manifest.json");
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| Error(format!("{}: {e} (not a made capture: made_capture writes it)", path.display())))?;
-    let json: Value = serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?;
-    match (json["res"].as_u64(), json["seed"].as_u64()) {
-        (Some(res), Some(seed)) => Ok((res as usize, seed)),
-        _ => Err(Error(format!("{}: no res and seed: not made_capture's manifest", path.display()))),
-    }
 }

@@ -13,6 +13,7 @@ use crate::optim::Adam;
 use crate::recon::train::TrainSettings;
 use crate::scene::Camera;
 use crate::volume::Grid;
+use std::path::Path;
 
 /// What a stage's Adam steps move.
 pub(super) enum Params {
@@ -151,6 +152,22 @@ pub fn plume_in_box(lo: Vec3, hi: Vec3, res: usize, seed: u64, depth: f64) -> Gr
     let unit = crate::data::plume::plume(res, seed);
     let grid = Grid::new(lo, hi, unit.shape, unit.data);
     start_density(&grid, &grid.data, depth)
+}
+
+/// A made capture's truth (`data`: its info.json or the folder holding
+/// it): the plume's grid edge and frame 0's seed, from the manifest
+/// `made_capture` wrote in the folder above; [`plume_in_box`] of seed +
+/// frame rebuilds a frame's density.
+pub fn made_truth(data: &Path) -> Result<(usize, u64)> {
+    let folder = if data.is_dir() { data } else { data.parent().unwrap_or(Path::new(".")) };
+    let path = folder.join("..").join("manifest.json");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| Error(format!("{}: {e} (not a made capture: made_capture writes it)", path.display())))?;
+    let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+    match (json["res"].as_u64(), json["seed"].as_u64()) {
+        (Some(res), Some(seed)) => Ok((res as usize, seed)),
+        _ => Err(Error(format!("{}: no res and seed: not made_capture's manifest", path.display()))),
+    }
 }
 
 /// The factor on `shape` that makes [`start_density`] of it.

@@ -15,7 +15,9 @@
 //! - [`lighting`] is the fit's lighting and the cameras' gains: candidate
 //!   lights and an ambient term, fitted by least squares on their renders;
 //!   [`lights`] gives the image's derivatives in a light's place.
-//! - [`priors`] are what the fit asks of a density beside the images.
+//! - [`priors`] are what the fit asks of a density beside the images;
+//!   [`learned_filter`] is a linear filter from a fitted density to the
+//!   true one, learned on made captures.
 //! - [`rig`] aligns the training cameras once for every frame of a capture.
 //! - [`temporal`] brings neighbouring frames' densities onto one frame's.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
@@ -28,6 +30,7 @@ pub mod density;
 pub mod fit;
 pub mod frame;
 pub mod frames;
+pub mod learned_filter;
 pub mod lighting;
 pub mod lights;
 pub mod observe;
