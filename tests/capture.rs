@@ -718,4 +718,39 @@ fn made_capture_writes_a_capture_that_reads_back() {
     let rmse = |r: &[String]| r[5].parse::<f64>().unwrap();
     assert!((rmse(&rows[1]) - rmse(&rows[0])).abs() <= 0.2 * rmse(&rows[0]) + 0.05, "{csv}");
     assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
+    // learned_filter: learning from a frame it scores is refused before any
+    // output; learned from frames 0 and 2, it scores frame 1 in every arm,
+    // each density against the made truth.
+    let learned = |args: &[&str], out: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_learned_filter"))
+            .arg("--learn-data")
+            .arg(moved.join("ambient_0"))
+            .arg("--data")
+            .arg(moved.join("ambient_0"))
+            .args(args)
+            .args(["--model", "emission-absorption", "--radius", "1", "--fit-settings", small.to_str().unwrap()])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let filter_out = dir.join("filter");
+    let refused = learned(&["--learn-frames", "0,1", "--frames", "1"], &filter_out);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("share a frame"), "{err}");
+    assert!(!filter_out.exists(), "a shared frame is refused before any output");
+    let ok = learned(&["--learn-frames", "0,2", "--frames", "1"], &filter_out);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let csv = std::fs::read_to_string(filter_out.join("learned_filter.csv")).unwrap();
+    let rows: Vec<Vec<String>> = csv::Reader::from_reader(csv.as_bytes())
+        .records()
+        .map(|r| r.unwrap().iter().map(String::from).collect())
+        .collect();
+    let arms: Vec<&str> = rows.iter().map(|r| r[1].as_str()).collect();
+    assert_eq!(arms, ["fit", "fit, held", "filtered, held", "refit from filtered"], "{csv}");
+    assert!(rows.iter().all(|r| r[5].parse::<f64>().is_ok_and(|e| e > 0.0)), "a density error per arm: {csv}");
+    assert!(!csv.to_lowercase().contains("nan") && !csv.contains("inf"), "{csv}");
+    let filter: Value =
+        serde_json::from_str(&std::fs::read_to_string(filter_out.join("filter.json")).unwrap()).unwrap();
+    assert_eq!(filter["weights"].as_array().unwrap().len(), 28, "27 neighbours and a constant");
 }
