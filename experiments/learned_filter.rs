@@ -67,7 +67,8 @@ struct Args {
     /// Fit settings (JSON; fields not given keep their defaults).
     #[arg(long)]
     fit_settings: Option<PathBuf>,
-    /// Output directory: learned_filter.csv, filter.json, summary.md, manifest.json.
+    /// Output directory: learned_filter.csv, filter.json, the rigs (rig_learned.json, and rig_scored.json
+    /// for another capture), summary.md, manifest.json.
     #[arg(long)]
     out: PathBuf,
 }
@@ -116,7 +117,8 @@ fn run(args: Args) -> Result<()> {
         FitSettings { model: args.model, ..FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")? };
     let same =
         |a: &Path, b: &Path| calibration::locate(a).canonicalize().ok() == calibration::locate(b).canonicalize().ok();
-    if same(&args.learn_data, &args.data) && args.frames.iter().any(|f| args.learn_frames.contains(f)) {
+    let same_capture = same(&args.learn_data, &args.data);
+    if same_capture && args.frames.iter().any(|f| args.learn_frames.contains(f)) {
         return Err(Error(
             "--frames and --learn-frames share a frame of the same capture: learn from other plumes".into(),
         ));
@@ -164,7 +166,12 @@ fn run(args: Args) -> Result<()> {
         &serde_json::json!({"radius": filter.radius, "voxels": normal.voxels, "weights": filter.weights}),
     )?;
     // Score.
-    let scored = prepare(capture, roles, "scored")?;
+    // One capture learned from and scored: its rig, fitted once, serves both.
+    let scored = if same_capture {
+        Prepared { capture, roles, rig: learn.rig.clone() }
+    } else {
+        prepare(capture, roles, "scored")?
+    };
     let fixed = scored.rig.as_ref().map(Rig::corrections);
     let smoke_box = scored.capture.grid_box()?;
     let held_out = scored.roles.held_out[0];
