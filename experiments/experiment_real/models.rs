@@ -50,14 +50,16 @@ pub struct FitResult {
     pub light_share: Option<f64>,
     /// Per training camera (`;`-separated, in the training cameras' order):
     /// its fitted gain, how far its principal point moved (full-resolution
-    /// pixels, right then down, `x/y`) and the factor its focal lengths
-    /// were scaled by.
+    /// pixels, right then down, `x/y`), the factor its focal lengths
+    /// were scaled by and the angle it was turned by (degrees).
     #[serde(default)]
     pub gains: String,
     #[serde(default)]
     pub offsets_px: String,
     #[serde(default)]
     pub zooms: String,
+    #[serde(default)]
+    pub rolls_deg: String,
     /// Diagnostics that only the held-out photograph gives, never used to
     /// choose anything (`capture::protocol::Oracle`): the least-squares gain
     /// of the held-out view onto its photograph and the PSNR with it, and
@@ -175,6 +177,7 @@ pub fn run(
                 gains: joined(fitted.gains.iter().map(|g| format!("{g:.4}"))),
                 offsets_px: joined(fitted.offsets_px().iter().map(|o| format!("{:.1}/{:.1}", o[0], o[1]))),
                 zooms: joined(fitted.zooms.iter().map(|z| format!("{z:.4}"))),
+                rolls_deg: joined(fitted.rolls.iter().map(|r| format!("{:.3}", r.to_degrees()))),
                 oracle_gain: Some(held.oracle.gain),
                 psnr_oracle_gain_db: held.oracle.with_gain.psnr,
                 oracle_shift_px: format!("{}/{}", held.oracle.shift[0], held.oracle.shift[1]),

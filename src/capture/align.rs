@@ -5,18 +5,20 @@
 //! about 40 full-resolution pixels apart between cameras), one that
 //! misjudges its focal length magnifies it about the principal point; a
 //! fit through such views smears the density. The warp is found by
-//! Gauss-Newton on `sum_p (P(c + k (p - c) + d) - R(p))^2`, with `P` the
-//! photograph sampled bilinearly, `c` the principal point, `d` the offset
-//! and `k = 1 + zoom`, all carried in three dual lanes: the Jacobian is
-//! exact. Moving the camera's principal point by `d` and multiplying its
-//! focal lengths by `k` then moves its render onto the photograph
-//! ([`Corrections`], the form a capture's rig hands a fit).
+//! Gauss-Newton on `sum_p (P(c + k Rot(roll) (p - c) + d) - R(p))^2`, with
+//! `P` the photograph sampled bilinearly, `c` the principal point, `d` the
+//! offset, `k = 1 + zoom` and `Rot` a rotation of the image plane (a camera
+//! turned about its optical axis), all carried in four dual lanes: the
+//! Jacobian is exact. Moving the camera's principal point by `d`,
+//! multiplying its focal lengths by `k` and turning it by `roll` then moves
+//! its render onto the photograph ([`Corrections`], the form a capture's
+//! rig hands a fit).
 
 use crate::ad::dual::{lane, with_tangents};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::scene::Camera;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 use num_dual::DualNum;
 
 /// Gauss-Newton iterations per call.
@@ -26,14 +28,33 @@ const ITERATIONS: usize = 8;
 /// photograph is a good model of itself only within about a pixel.
 const MAX_STEP: f64 = 1.0;
 
-/// A photograph's warp onto a render: sample it at `c + (1 + zoom) (p - c)
-/// + offset` for pixel `p`, `c` the principal point.
+/// A photograph's warp onto a render: sample it at `c + (1 + zoom)
+/// Rot(roll) (p - c) + offset` for pixel `p`, `c` the principal point.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Warp {
     /// Pixels, right and down.
     pub offset: [f64; 2],
     /// Relative magnification: the camera's focal lengths become `1 + zoom` times theirs.
     pub zoom: f64,
+    /// Radians, from the image's right towards its bottom: the camera turned
+    /// about its optical axis by [`Camera::roll`] of this angle.
+    pub roll: f64,
+}
+
+/// Which of a warp's parameters besides the offset are fitted.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Free {
+    /// The magnification about the principal point.
+    pub zoom: bool,
+    /// The turn about the optical axis.
+    pub roll: bool,
+}
+
+impl Free {
+    /// Indices of the fitted parameters in `[d_x, d_y, zoom, roll]`.
+    fn indices(self) -> Vec<usize> {
+        [(0, true), (1, true), (2, self.zoom), (3, self.roll)].iter().filter(|p| p.1).map(|p| p.0).collect()
+    }
 }
 
 /// The photograph `photo` at `(x, y)` (pixel units, pixel centres at
@@ -56,32 +77,35 @@ pub fn sample<D: DualNum<Primitive = f64> + Copy>(photo: &Image, x: D, y: D) -> 
         + fx * fy * at(i0 + 1.0, j0 + 1.0)
 }
 
-/// The squared error `sum_p (P(c + k (p - c) + d) - R(p))^2` and its
-/// gradient and Gauss-Newton matrix in `w = [d_x, d_y, zoom]`; without
-/// `zoom`, `k` is 1 and its lane 0.
+/// The squared error `sum_p (P(c + k Rot(roll) (p - c) + d) - R(p))^2` and
+/// its gradient and Gauss-Newton matrix in `w = [d_x, d_y, zoom, roll]`;
+/// a parameter `free` leaves out stays as `w` has it (0: `k` 1, no turn).
 fn gauss_newton(
     rendered: &Image,
     photo: &Image,
     centre: [f64; 2],
-    w: [f64; 3],
-    zoom: bool,
-) -> (f64, Vector3<f64>, Matrix3<f64>) {
-    let dx = with_tangents(w[0], [1.0, 0.0, 0.0]);
-    let dy = with_tangents(w[1], [0.0, 1.0, 0.0]);
-    let k = with_tangents(1.0 + w[2], [0.0, 0.0, 1.0]);
-    let (mut err, mut g, mut h) = (0.0, Vector3::zeros(), Matrix3::zeros());
+    w: [f64; 4],
+    free: Free,
+) -> (f64, Vector4<f64>, Matrix4<f64>) {
+    let dx = with_tangents(w[0], [1.0, 0.0, 0.0, 0.0]);
+    let dy = with_tangents(w[1], [0.0, 1.0, 0.0, 0.0]);
+    let k = with_tangents(1.0 + w[2], [0.0, 0.0, 1.0, 0.0]);
+    let roll = with_tangents(w[3], [0.0, 0.0, 0.0, 1.0]);
+    let (cos, sin) = (roll.cos() * k, roll.sin() * k);
+    let (mut err, mut g, mut h) = (0.0, Vector4::zeros(), Matrix4::zeros());
     for y in 0..rendered.height {
         for x in 0..rendered.width {
             let r = rendered.data[y * rendered.width + x];
-            // Without the zoom, the offset alone, rounded as it always was.
-            let (px, py) = if !zoom {
-                (dx + (x as f64 + 0.5), dy + (y as f64 + 0.5))
-            } else {
-                (k * (x as f64 + 0.5 - centre[0]) + dx + centre[0], k * (y as f64 + 0.5 - centre[1]) + dy + centre[1])
+            let (u, v) = (x as f64 + 0.5 - centre[0], y as f64 + 0.5 - centre[1]);
+            // The offset alone, or with the zoom, rounded as they always were.
+            let (px, py) = match free {
+                Free { zoom: false, roll: false } => (dx + (x as f64 + 0.5), dy + (y as f64 + 0.5)),
+                Free { roll: false, .. } => (k * u + dx + centre[0], k * v + dy + centre[1]),
+                _ => (cos * u - sin * v + dx + centre[0], sin * u + cos * v + dy + centre[1]),
             };
             let p = sample(photo, px, py);
             let res = p.re - r;
-            let j = Vector3::new(lane(&p, 0), lane(&p, 1), lane(&p, 2));
+            let j = Vector4::new(lane(&p, 0), lane(&p, 1), lane(&p, 2), lane(&p, 3));
             err += res * res;
             g += 2.0 * res * j;
             h += 2.0 * j * j.transpose();
@@ -91,26 +115,27 @@ fn gauss_newton(
 }
 
 /// The warp that moves `photo` onto `rendered`, from none: `photo` sampled
-/// at `c + (1 + zoom) (p - c) + offset` best matches `rendered(p)`, `c` =
-/// `centre`, the camera's principal point (pixels). Without `zoom`, only
-/// the offset moves. Each iteration is a Gauss-Newton step, shortened until
-/// no pixel moves more than [`MAX_STEP`] and halved until the error falls.
-pub fn warp(rendered: &Image, photo: &Image, centre: [f64; 2], zoom: bool) -> Warp {
+/// at `c + (1 + zoom) Rot(roll) (p - c) + offset` best matches
+/// `rendered(p)`, `c` = `centre`, the camera's principal point (pixels).
+/// The offset always moves, the zoom and roll where `free` says. Each
+/// iteration is a Gauss-Newton step, shortened until no pixel moves more
+/// than [`MAX_STEP`] and halved until the error falls.
+pub fn warp(rendered: &Image, photo: &Image, centre: [f64; 2], free: Free) -> Warp {
     // The farthest pixel from the centre, which the zoom moves most.
     let reach = [0.0, rendered.width as f64]
         .iter()
         .flat_map(|&x| [0.0, rendered.height as f64].map(|y| (x - centre[0]).hypot(y - centre[1])))
         .fold(0.0, f64::max);
-    let mut w = [0.0; 3];
+    let mut w = [0.0; 4];
     for _ in 0..ITERATIONS {
-        let (err, g, h) = gauss_newton(rendered, photo, centre, w, zoom);
-        let Some(step) = solve(&g, &h, zoom) else { break };
-        let largest = step[0].hypot(step[1]) + step[2].abs() * reach;
+        let (err, g, h) = gauss_newton(rendered, photo, centre, w, free);
+        let Some(step) = solve(&g, &h, free) else { break };
+        let largest = step[0].hypot(step[1]) + (step[2].abs() + step[3].abs()) * reach;
         let mut step = if largest > MAX_STEP { step * MAX_STEP / largest } else { step };
         let mut moved = false;
         for _ in 0..6 {
-            let trial = [w[0] + step[0], w[1] + step[1], w[2] + step[2]];
-            if gauss_newton(rendered, photo, centre, trial, zoom).0 < err {
+            let trial = [w[0] + step[0], w[1] + step[1], w[2] + step[2], w[3] + step[3]];
+            if gauss_newton(rendered, photo, centre, trial, free).0 < err {
                 w = trial;
                 moved = true;
                 break;
@@ -121,7 +146,7 @@ pub fn warp(rendered: &Image, photo: &Image, centre: [f64; 2], zoom: bool) -> Wa
             break;
         }
     }
-    Warp { offset: [w[0], w[1]], zoom: w[2] }
+    Warp { offset: [w[0], w[1]], zoom: w[2], roll: w[3] }
 }
 
 /// Cameras' corrections found before a fit (a capture's rig, [`super::rig`]):
@@ -133,26 +158,36 @@ pub struct Corrections {
     pub offsets_px: Vec<[f64; 2]>,
     /// Per camera, the factor its focal lengths are multiplied by.
     pub zooms: Vec<f64>,
+    /// Per camera, the angle it is turned by about its optical axis
+    /// ([`Camera::roll`], radians).
+    pub rolls: Vec<f64>,
 }
 
 impl Corrections {
     /// `cameras` (at 1/`factor` of the capture's resolution, in the
     /// corrections' order) corrected, and the offsets in their pixels.
     pub fn apply(&self, cameras: &[Camera], factor: usize) -> Result<(Vec<Camera>, Vec<[f64; 2]>)> {
-        if cameras.len() != self.zooms.len() || self.offsets_px.len() != self.zooms.len() {
+        let n = self.zooms.len();
+        if cameras.len() != n || self.offsets_px.len() != n || self.rolls.len() != n {
             return Err(Error(format!("corrections for {} cameras, the fit has {}", self.zooms.len(), cameras.len())));
         }
         let f = factor as f64;
         let offsets: Vec<[f64; 2]> = self.offsets_px.iter().map(|o| [o[0] / f, o[1] / f]).collect();
-        let moved = cameras.iter().zip(&self.zooms).zip(&offsets).map(|((cam, &k), o)| cam.shift(o[0], o[1]).zoom(k));
+        let moved = cameras
+            .iter()
+            .zip(&self.zooms)
+            .zip(&self.rolls)
+            .zip(&offsets)
+            .map(|(((cam, &k), &roll), o)| cam.shift(o[0], o[1]).zoom(k).roll(roll));
         Ok((moved.collect(), offsets))
     }
 }
 
-/// Takes out of per-camera `offsets` their mean and divides `factors`
-/// (magnifications) by their geometric mean: a move or magnification that
-/// every camera shares is the density's to explain, not the cameras'.
-pub fn take_out_shared(offsets: &mut [[f64; 2]], factors: &mut [f64]) {
+/// Takes out of per-camera `offsets` and `rolls` their means and divides
+/// `factors` (magnifications) by their geometric mean: a move, turn or
+/// magnification that every camera shares is the density's to explain,
+/// not the cameras'.
+pub fn take_out_shared(offsets: &mut [[f64; 2]], factors: &mut [f64], rolls: &mut [f64]) {
     let n = offsets.len().max(1) as f64;
     let mean = [0, 1].map(|a| offsets.iter().map(|o| o[a]).sum::<f64>() / n);
     for o in offsets.iter_mut() {
@@ -162,6 +197,10 @@ pub fn take_out_shared(offsets: &mut [[f64; 2]], factors: &mut [f64]) {
     for k in factors.iter_mut() {
         *k /= shared;
     }
+    let turn = rolls.iter().sum::<f64>() / rolls.len().max(1) as f64;
+    for r in rolls.iter_mut() {
+        *r -= turn;
+    }
 }
 
 /// The geometric mean of per-camera `factors` (gains, magnifications), the
@@ -170,20 +209,27 @@ pub fn geometric_mean(factors: &[f64]) -> f64 {
     (factors.iter().map(|k| k.ln()).sum::<f64>() / factors.len().max(1) as f64).exp()
 }
 
-/// The Gauss-Newton step `-h^-1 g`; without `zoom`, in the offset alone
-/// (the zoom's step 0). `None` where `h` is singular.
-fn solve(g: &Vector3<f64>, h: &Matrix3<f64>, zoom: bool) -> Option<Vector3<f64>> {
-    let step = if zoom {
-        -h.cholesky()?.solve(g)
-    } else {
+/// The Gauss-Newton step `-h^-1 g` in the parameters `free` fits (the
+/// others' steps 0). `None` where `h` is singular.
+fn solve(g: &Vector4<f64>, h: &Matrix4<f64>, free: Free) -> Option<Vector4<f64>> {
+    let mut step = Vector4::zeros();
+    let at = free.indices();
+    if at.len() == 2 {
+        // The offset alone, solved as it always was.
         let det = h[(0, 0)] * h[(1, 1)] - h[(0, 1)] * h[(1, 0)];
         if !(det > 0.0 && det.is_finite()) {
             return None;
         }
-        let x = -(h[(1, 1)] * g[0] - h[(0, 1)] * g[1]) / det;
-        let y = -(h[(0, 0)] * g[1] - h[(1, 0)] * g[0]) / det;
-        Vector3::new(x, y, 0.0)
-    };
+        step[0] = -(h[(1, 1)] * g[0] - h[(0, 1)] * g[1]) / det;
+        step[1] = -(h[(0, 0)] * g[1] - h[(1, 0)] * g[0]) / det;
+    } else {
+        let sub_h = DMatrix::from_fn(at.len(), at.len(), |i, j| h[(at[i], at[j])]);
+        let sub_g = DVector::from_fn(at.len(), |i, _| g[at[i]]);
+        let sub = -sub_h.cholesky()?.solve(&sub_g);
+        for (i, &a) in at.iter().enumerate() {
+            step[a] = sub[i];
+        }
+    }
     step.iter().all(|s| s.is_finite()).then_some(step)
 }
 
@@ -203,7 +249,8 @@ mod tests {
             width: 64,
             height: 48,
         };
-        let fixed = Corrections { offsets_px: vec![[16.0, -8.0], [0.0; 2]], zooms: vec![1.05, 1.0] };
+        let fixed =
+            Corrections { offsets_px: vec![[16.0, -8.0], [0.0; 2]], zooms: vec![1.05, 1.0], rolls: vec![0.0; 2] };
         let (moved, offsets) = fixed.apply(&[base.clone(), base.clone()], 8).unwrap();
         assert_eq!(offsets, vec![[2.0, -1.0], [0.0, 0.0]]);
         let ([fx, fy, cx, cy], [fx0, fy0, cx0, cy0]) = (moved[0].intrinsics(), base.intrinsics());
@@ -233,7 +280,7 @@ mod tests {
     fn a_moved_blob_is_found_where_it_was_moved() {
         let rendered = blob(40, 30, 20.0, 15.0);
         let photo = blob(40, 30, 22.3, 13.6);
-        let w = warp(&rendered, &photo, [20.0, 15.0], false);
+        let w = warp(&rendered, &photo, [20.0, 15.0], Free::default());
         // Bilinear sampling of the photograph limits the match to a few hundredths of a pixel.
         let d = w.offset;
         assert!((d[0] - 2.3).abs() < 0.05 && (d[1] + 1.4).abs() < 0.05 && w.zoom == 0.0, "{w:?}");
@@ -249,28 +296,90 @@ mod tests {
             Image { data: a.data.iter().zip(&b.data).map(|(x, y)| x + y).collect(), ..a }
         };
         let (rendered, photo) = (pair(1.0, [0.0, 0.0]), pair(1.04, [0.6, -0.4]));
-        let w = warp(&rendered, &photo, [20.0, 15.0], true);
+        let w = warp(&rendered, &photo, [20.0, 15.0], Free { zoom: true, roll: false });
         assert!(
             (w.zoom - 0.04).abs() < 0.003 && (w.offset[0] - 0.6).abs() < 0.05 && (w.offset[1] + 0.4).abs() < 0.05,
             "{w:?}"
         );
-        let fixed = warp(&rendered, &photo, [20.0, 15.0], false);
+        let fixed = warp(&rendered, &photo, [20.0, 15.0], Free::default());
         assert_eq!(fixed.zoom, 0.0);
+    }
+
+    #[test]
+    fn a_turned_photograph_is_found_turned() {
+        // Two blobs on a line through the principal point (20, 15), the
+        // photograph's turned by 3 degrees about it (towards the bottom) and
+        // moved: the roll finds the turn, the offset and zoom alone cannot.
+        let turn = 3f64.to_radians();
+        let pair = |a: f64, d: [f64; 2]| {
+            let one = |side: f64| {
+                let (u, v) = (side * 10.0 * a.cos(), side * 10.0 * a.sin());
+                sized_blob(40, 30, 20.0 + u + d[0], 15.0 + v + d[1], 0.7)
+            };
+            let (a, b) = (one(-1.0), one(1.0));
+            Image { data: a.data.iter().zip(&b.data).map(|(x, y)| x + y).collect(), ..a }
+        };
+        let (rendered, photo) = (pair(0.0, [0.0, 0.0]), pair(turn, [0.3, -0.2]));
+        let w = warp(&rendered, &photo, [20.0, 15.0], Free { zoom: true, roll: true });
+        assert!(
+            (w.roll - turn).abs() < 0.1f64.to_radians() && w.zoom.abs() < 0.003 && (w.offset[0] - 0.3).abs() < 0.05,
+            "{w:?}"
+        );
+        let unturned = warp(&rendered, &photo, [20.0, 15.0], Free { zoom: true, roll: false });
+        assert_eq!(unturned.roll, 0.0);
+    }
+
+    #[test]
+    fn the_roll_found_is_the_turn_of_the_camera_that_took_the_photograph() {
+        // Blobs where two points appear to a camera, and to the same camera
+        // turned about its optical axis: the warp's roll is the camera's turn.
+        let camera = Camera {
+            position: Vec3::new(0.0, 0.0, 3.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            lens: Lens::Pinhole { fx: 60.0, fy: 60.0, cx: 20.0, cy: 15.0 },
+            width: 40,
+            height: 30,
+        };
+        let seen = |cam: &Camera| {
+            let blobs: Vec<Image> = [Vec3::new(-0.5, 0.3, 0.0), Vec3::new(0.5, -0.1, 0.0)]
+                .iter()
+                .map(|p| cam.project(p).unwrap())
+                .map(|(x, y)| sized_blob(40, 30, x, y, 0.7))
+                .collect();
+            Image { data: blobs[0].data.iter().zip(&blobs[1].data).map(|(a, b)| a + b).collect(), ..blobs[0].clone() }
+        };
+        let turn = 0.05;
+        let w = warp(&seen(&camera), &seen(&camera.roll(turn)), [20.0, 15.0], Free { zoom: true, roll: true });
+        assert!((w.roll - turn).abs() < 0.003 && w.offset[0].abs() < 0.05 && w.offset[1].abs() < 0.05, "{w:?}");
+    }
+
+    #[test]
+    fn a_turn_every_camera_shares_is_taken_out() {
+        let (mut offsets, mut factors, mut rolls) = (vec![[1.0, 2.0], [3.0, -2.0]], vec![1.1, 1.1], vec![0.01, 0.03]);
+        take_out_shared(&mut offsets, &mut factors, &mut rolls);
+        assert_eq!(offsets, vec![[-1.0, 2.0], [1.0, -2.0]]);
+        assert!(
+            factors.iter().all(|k| (k - 1.0).abs() < 1e-12)
+                && (rolls[0] + 0.01).abs() < 1e-12
+                && (rolls[1] - 0.01).abs() < 1e-12
+        );
     }
 
     #[test]
     fn the_dual_gradient_matches_finite_differences() {
         let rendered = blob(24, 20, 11.0, 9.0);
         let photo = blob(24, 20, 12.2, 8.1);
-        let (w, c) = ([0.37, -0.21, 0.03], [12.5, 10.0]);
-        let (_, g, _) = gauss_newton(&rendered, &photo, c, w, true);
-        for a in 0..3 {
+        let (w, c) = ([0.37, -0.21, 0.03, 0.02], [12.5, 10.0]);
+        let free = Free { zoom: true, roll: true };
+        let (_, g, _) = gauss_newton(&rendered, &photo, c, w, free);
+        for a in 0..4 {
             let h = 1e-6;
             let (mut up, mut down) = (w, w);
             up[a] += h;
             down[a] -= h;
-            let fd = (gauss_newton(&rendered, &photo, c, up, true).0
-                - gauss_newton(&rendered, &photo, c, down, true).0)
+            let fd = (gauss_newton(&rendered, &photo, c, up, free).0
+                - gauss_newton(&rendered, &photo, c, down, free).0)
                 / (2.0 * h);
             assert!((fd - g[a]).abs() < 1e-6 * fd.abs().max(1e-6), "lane {a}: {} vs {fd}", g[a]);
         }

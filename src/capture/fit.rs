@@ -20,7 +20,7 @@
 //! [`FitSettings::start_depth`] across the hull) and moves only where
 //! attenuation in the images asks for it.
 
-use super::align::{take_out_shared, warp, Corrections};
+use super::align::{take_out_shared, warp, Corrections, Free};
 use super::density::{
     cube_around, decoder_start, grid_shape, in_box, start_density, start_shape, upsample, voxel_params, Params,
 };
@@ -75,6 +75,9 @@ pub struct Fit {
     /// Per training camera, the factor its focal lengths were multiplied by
     /// (1 without `zoom`).
     pub zooms: Vec<f64>,
+    /// Per training camera, the angle it was turned by about its optical
+    /// axis (radians, [`Camera::roll`]; 0 without `roll`).
+    pub rolls: Vec<f64>,
     /// Per training camera, its gain: its photograph is its render times it.
     pub gains: Vec<f64>,
     /// Per update.
@@ -198,6 +201,7 @@ struct FrameFit<'a> {
     threshold: f64,
     offsets: Vec<[f64; 2]>,
     zooms: Vec<f64>,
+    rolls: Vec<f64>,
     /// The training cameras, the density of the last stage, lights and emission.
     scene: Scene,
     /// Whether the emission term is fitted: emission-absorption has no lights, its emission is its image.
@@ -222,12 +226,13 @@ impl<'a> FrameFit<'a> {
         settings: &'a FitSettings,
         fixed: Option<&'a Corrections>,
     ) -> Result<Self> {
-        let (cameras, offsets, zooms) = match fixed {
+        let n = cameras.len();
+        let (cameras, offsets, zooms, rolls) = match fixed {
             Some(fixed) => {
                 let (cameras, offsets) = fixed.apply(cameras, settings.factor)?;
-                (cameras, offsets, fixed.zooms.clone())
+                (cameras, offsets, fixed.zooms.clone(), fixed.rolls.clone())
             }
-            None => (cameras.to_vec(), vec![[0.0; 2]; cameras.len()], vec![1.0; cameras.len()]),
+            None => (cameras.to_vec(), vec![[0.0; 2]; n], vec![1.0; n], vec![0.0; n]),
         };
         let start = Instant::now();
         let (lo, hi) = smoke_box;
@@ -263,6 +268,7 @@ impl<'a> FrameFit<'a> {
             threshold: settings.threshold.powf(settings.gamma),
             offsets,
             zooms,
+            rolls,
             scene,
             ambient: settings.ambient || !settings.model.lit(),
             smoothness_axes,
@@ -356,14 +362,9 @@ impl<'a> FrameFit<'a> {
     fn refit(&mut self, stage: usize) -> Result<()> {
         let settings = self.settings;
         if let (true, true, None, Some(rendered)) = (settings.align, stage > 0, self.fixed, &self.last) {
-            align_cameras(
-                &mut self.scene.cameras,
-                &mut self.offsets,
-                &mut self.zooms,
-                settings.zoom,
-                rendered,
-                &self.images,
-            );
+            let free = Free { zoom: settings.zoom, roll: settings.roll };
+            let moves = Moves { offsets: &mut self.offsets, zooms: &mut self.zooms, rolls: &mut self.rolls };
+            align_cameras(&mut self.scene.cameras, moves, free, rendered, &self.images);
         }
         let (targets, basis) = self.refit_lighting(stage > 0)?;
         if settings.lights > 0 && stage > 0 && settings.model.lit() {
@@ -435,6 +436,7 @@ impl<'a> FrameFit<'a> {
             settings: self.settings.clone(),
             offsets: self.offsets,
             zooms: self.zooms,
+            rolls: self.rolls,
             gains: self.gains,
             log: self.log,
             light_share,
@@ -443,37 +445,40 @@ impl<'a> FrameFit<'a> {
     }
 }
 
-/// Moves every camera's principal point (and with `zoom` scales its focal
-/// lengths) so that its photograph agrees with `rendered` (its render
-/// before the move), keeping the mean move 0 and the magnifications'
-/// geometric mean 1: a shift or magnification shared by every camera is
-/// the density's to explain, not the cameras'.
-fn align_cameras(
-    cameras: &mut [Camera],
-    offsets: &mut [[f64; 2]],
-    zooms: &mut [f64],
-    zoom: bool,
-    rendered: &[Image],
-    photos: &[Image],
-) {
+/// The training cameras' corrections so far, per camera: what
+/// [`align_cameras`] adds to.
+struct Moves<'m> {
+    offsets: &'m mut [[f64; 2]],
+    zooms: &'m mut [f64],
+    rolls: &'m mut [f64],
+}
+
+/// Moves every camera's principal point (and as `free` says scales its
+/// focal lengths and turns it about its optical axis) so that its
+/// photograph agrees with `rendered` (its render before the move), keeping
+/// the mean move and turn 0 and the magnifications' geometric mean 1: a
+/// shift, turn or magnification shared by every camera is the density's to
+/// explain, not the cameras'.
+fn align_cameras(cameras: &mut [Camera], totals: Moves, free: Free, rendered: &[Image], photos: &[Image]) {
     let warps: Vec<_> = rendered
         .iter()
         .zip(photos)
         .zip(cameras.iter())
         .map(|((r, p), c)| {
             let [_, _, cx, cy] = c.intrinsics();
-            warp(r, p, [cx, cy], zoom)
+            warp(r, p, [cx, cy], free)
         })
         .collect();
     let mut moves: Vec<[f64; 2]> = warps.iter().map(|w| w.offset).collect();
     let mut factors: Vec<f64> = warps.iter().map(|w| 1.0 + w.zoom).collect();
-    take_out_shared(&mut moves, &mut factors);
-    for (((camera, total), factor), ([dx, dy], k)) in
-        cameras.iter_mut().zip(offsets).zip(zooms).zip(moves.into_iter().zip(factors))
-    {
-        *camera = camera.shift(dx, dy).zoom(k);
-        *total = [total[0] + dx, total[1] + dy];
-        *factor *= k;
+    let mut turns: Vec<f64> = warps.iter().map(|w| w.roll).collect();
+    take_out_shared(&mut moves, &mut factors, &mut turns);
+    for (c, camera) in cameras.iter_mut().enumerate() {
+        let [dx, dy] = moves[c];
+        *camera = camera.shift(dx, dy).zoom(factors[c]).roll(turns[c]);
+        totals.offsets[c] = [totals.offsets[c][0] + dx, totals.offsets[c][1] + dy];
+        totals.zooms[c] *= factors[c];
+        totals.rolls[c] += turns[c];
     }
 }
 

@@ -39,13 +39,16 @@ struct Quality {
     gain: f64,
     /// How far the fit moved the camera's principal point (full-resolution
     /// pixels, right and down) and the factor it scaled its focal lengths
-    /// by; a held-out camera is never moved (0, 0, 1).
+    /// by, and the angle it was turned by about its optical axis (degrees);
+    /// a held-out camera is never moved (0, 0, 1, 0).
     #[serde(serialize_with = "fmt::f1")]
     offset_x_px: f64,
     #[serde(serialize_with = "fmt::f1")]
     offset_y_px: f64,
     #[serde(serialize_with = "fmt::f4")]
     zoom: f64,
+    #[serde(serialize_with = "fmt::f4")]
+    roll_deg: f64,
     /// A held-out camera's PSNR with its view scaled by the least-squares
     /// gain onto its photograph, and moved by the best whole-pixel shift
     /// (`super::protocol::Oracle`): how much of its error its unknown
@@ -152,8 +155,10 @@ fn write(
     let views = training_views(&result.fit);
     let fit = &result.fit;
     let offsets = fit.offsets_px();
-    let moves = fit.gains.iter().zip(&offsets).zip(&fit.zooms);
-    for (((&v, image), target), ((&gain, offset), &zoom)) in roles.training.iter().zip(&views).zip(targets).zip(moves) {
+    let moves = fit.gains.iter().zip(&offsets).zip(fit.zooms.iter().zip(&fit.rolls));
+    for (((&v, image), target), ((&gain, offset), (&zoom, &roll))) in
+        roles.training.iter().zip(&views).zip(targets).zip(moves)
+    {
         let score = super::protocol::Score::of(image, target);
         let name = capture.views[v].name.clone();
         quality.push(Quality {
@@ -167,6 +172,7 @@ fn write(
             offset_x_px: offset[0],
             offset_y_px: offset[1],
             zoom,
+            roll_deg: roll.to_degrees(),
             psnr_oracle_gain_db: None,
             psnr_oracle_shift_db: None,
             oracle_magnification: None,
@@ -194,6 +200,7 @@ fn write(
             offset_x_px: 0.0,
             offset_y_px: 0.0,
             zoom: 1.0,
+            roll_deg: 0.0,
             psnr_oracle_gain_db: held.oracle.with_gain.psnr,
             psnr_oracle_shift_db: held.oracle.with_shift.psnr,
             oracle_magnification: Some(held.aligned.magnification),

@@ -33,6 +33,10 @@ pub struct RigCamera {
     pub offset_px: [f64; 2],
     /// The factor its focal lengths are multiplied by.
     pub zoom: f64,
+    /// The angle it is turned by about its optical axis, in degrees
+    /// ([`crate::scene::Camera::roll`]; 0, and not written, unless fitted).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub roll_deg: f64,
 }
 
 /// The training cameras' corrections, fitted once for every frame: the
@@ -56,6 +60,10 @@ pub struct Rig {
     /// ([`FitSettings::rig_lit_share`]) asked for that fit.
     #[serde(default)]
     pub lit_share: Option<f64>,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// `n` frames of a clip of `count` frames, at the middles of `n` equal
@@ -139,6 +147,7 @@ impl Rig {
                 name: capture.views[v].name.clone(),
                 offset_px: [0, 1].map(|a| median(fits.iter().map(|f| f.offsets_px()[c][a]).collect())),
                 zoom: median(fits.iter().map(|f| f.zooms[c]).collect()),
+                roll_deg: median(fits.iter().map(|f| f.rolls[c].to_degrees()).collect()),
             })
             .collect();
         let cameras = centred(cameras);
@@ -150,18 +159,20 @@ impl Rig {
         Corrections {
             offsets_px: self.cameras.iter().map(|c| c.offset_px).collect(),
             zooms: self.cameras.iter().map(|c| c.zoom).collect(),
+            rolls: self.cameras.iter().map(|c| c.roll_deg.to_radians()).collect(),
         }
     }
 }
 
-/// `cameras` with their offsets' mean taken out and their magnifications
-/// divided by their geometric mean ([`take_out_shared`]).
+/// `cameras` with their offsets' and turns' means taken out and their
+/// magnifications divided by their geometric mean ([`take_out_shared`]).
 fn centred(mut cameras: Vec<RigCamera>) -> Vec<RigCamera> {
     let mut offsets: Vec<[f64; 2]> = cameras.iter().map(|c| c.offset_px).collect();
     let mut zooms: Vec<f64> = cameras.iter().map(|c| c.zoom).collect();
-    take_out_shared(&mut offsets, &mut zooms);
-    for ((c, o), k) in cameras.iter_mut().zip(offsets).zip(zooms) {
-        (c.offset_px, c.zoom) = (o, k);
+    let mut rolls: Vec<f64> = cameras.iter().map(|c| c.roll_deg).collect();
+    take_out_shared(&mut offsets, &mut zooms, &mut rolls);
+    for (((c, o), k), r) in cameras.iter_mut().zip(offsets).zip(zooms).zip(rolls) {
+        (c.offset_px, c.zoom, c.roll_deg) = (o, k, r);
     }
     cameras
 }
@@ -171,7 +182,7 @@ mod tests {
     use super::*;
 
     fn camera(name: &str, offset_px: [f64; 2], zoom: f64) -> RigCamera {
-        RigCamera { name: name.into(), offset_px, zoom }
+        RigCamera { name: name.into(), offset_px, zoom, roll_deg: 0.0 }
     }
 
     #[test]

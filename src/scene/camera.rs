@@ -130,6 +130,17 @@ impl Camera {
         Camera { lens: Lens::Pinhole { fx: fx * k, fy: fy * k, cx, cy }, ..self.clone() }
     }
 
+    /// The same camera turned by `angle` radians about its optical axis: a
+    /// point's image turns by `angle` about the principal point, from the
+    /// image's right towards its bottom (exactly so where `fx == fy`).
+    pub fn roll(&self, angle: f64) -> Camera {
+        if angle == 0.0 {
+            return self.clone();
+        }
+        let (right, up, _) = self.basis();
+        Camera { up: up * angle.cos() - right * angle.sin(), ..self.clone() }
+    }
+
     /// The same camera for the image averaged over `factor` x `factor`
     /// blocks (a partial block at the right or bottom edge is dropped): new
     /// pixel `(u, v)` covers old pixels `factor*u .. factor*(u+1)`, so every
@@ -203,5 +214,22 @@ mod tests {
         // Zooming magnifies the image about the principal point.
         let (xz, yz) = full.zoom(1.1).project(&p).unwrap();
         assert!((xz - (30.5 + 1.1 * (x - 30.5))).abs() < 1e-9 && (yz - (20.0 + 1.1 * (y - 20.0))).abs() < 1e-9);
+    }
+
+    #[test]
+    fn rolling_turns_every_point_about_the_principal_point() {
+        let c = camera(Lens::Pinhole { fx: 70.0, fy: 70.0, cx: 30.5, cy: 20.0 });
+        let angle = 0.2;
+        let turned = c.roll(angle);
+        assert_eq!(c.roll(0.0), c);
+        for p in [Vec3::new(0.1, 0.2, -0.1), Vec3::new(-0.3, -0.1, 0.2)] {
+            let ((x, y), (xt, yt)) = (c.project(&p).unwrap(), turned.project(&p).unwrap());
+            let (u, v) = (x - 30.5, y - 20.0);
+            // Towards the bottom: (1, 0) turns to (cos, sin).
+            let (ut, vt) = (u * angle.cos() - v * angle.sin(), u * angle.sin() + v * angle.cos());
+            assert!((xt - 30.5 - ut).abs() < 1e-9 && (yt - 20.0 - vt).abs() < 1e-9, "{p:?}");
+        }
+        // The optical axis stays.
+        assert!((turned.basis().2 - c.basis().2).norm() < 1e-12);
     }
 }
