@@ -109,16 +109,30 @@ pub fn rig_note(rig: &Rig, settings: &FitSettings) -> String {
             100.0 * bound
         );
     }
+    // The turn about the optical axis where it was fitted (`roll`), as a column of its own.
+    let turned = rig.cameras.iter().any(|c| c.roll_deg != 0.0);
+    if turned {
+        md +=
+            " Each camera was also turned about its optical axis (degrees, from the image's right towards its bottom).";
+    }
     md += "\n\n";
     let rows = rig.cameras.iter().map(|c| {
-        vec![
+        let mut row = vec![
             c.name.clone(),
             format!("{:.1}", c.offset_px[0]),
             format!("{:.1}", c.offset_px[1]),
             format!("{:.4}", c.zoom),
-        ]
+        ];
+        if turned {
+            row.push(format!("{:.3}", c.roll_deg));
+        }
+        row
     });
-    md += &markdown_table(&["camera", "right (px)", "down (px)", "focal length factor"], rows);
+    let mut head = vec!["camera", "right (px)", "down (px)", "focal length factor"];
+    if turned {
+        head.push("turn (degrees)");
+    }
+    md += &markdown_table(&head, rows);
     md
 }
 

@@ -276,6 +276,16 @@ mod tests {
         Image { width: w, height: h, data }
     }
 
+    /// The sum of a 40 x 30 image's blobs at `(cx, cy)`, each `size` times as wide as [`blob`].
+    fn blobs(at: &[(f64, f64, f64)]) -> Image {
+        let mut sum = sized_blob(40, 30, at[0].0, at[0].1, at[0].2);
+        for &(cx, cy, size) in &at[1..] {
+            let more = sized_blob(40, 30, cx, cy, size);
+            sum.data.iter_mut().zip(&more.data).for_each(|(s, m)| *s += m);
+        }
+        sum
+    }
+
     #[test]
     fn a_moved_blob_is_found_where_it_was_moved() {
         let rendered = blob(40, 30, 20.0, 15.0);
@@ -290,11 +300,7 @@ mod tests {
     fn a_magnified_photograph_is_found_magnified() {
         // Two blobs about the principal point (20, 15), the photograph's magnified 4 %
         // and moved: the zoom finds the magnification the offset alone cannot.
-        let pair = |k: f64, d: [f64; 2]| {
-            let one = |side: f64| sized_blob(40, 30, 20.0 + side * 8.0 * k + d[0], 15.0 + d[1], k);
-            let (a, b) = (one(-1.0), one(1.0));
-            Image { data: a.data.iter().zip(&b.data).map(|(x, y)| x + y).collect(), ..a }
-        };
+        let pair = |k: f64, d: [f64; 2]| blobs(&[-1.0, 1.0].map(|side| (20.0 + side * 8.0 * k + d[0], 15.0 + d[1], k)));
         let (rendered, photo) = (pair(1.0, [0.0, 0.0]), pair(1.04, [0.6, -0.4]));
         let w = warp(&rendered, &photo, [20.0, 15.0], Free { zoom: true, roll: false });
         assert!(
@@ -312,12 +318,10 @@ mod tests {
         // moved: the roll finds the turn, the offset and zoom alone cannot.
         let turn = 3f64.to_radians();
         let pair = |a: f64, d: [f64; 2]| {
-            let one = |side: f64| {
-                let (u, v) = (side * 10.0 * a.cos(), side * 10.0 * a.sin());
-                sized_blob(40, 30, 20.0 + u + d[0], 15.0 + v + d[1], 0.7)
-            };
-            let (a, b) = (one(-1.0), one(1.0));
-            Image { data: a.data.iter().zip(&b.data).map(|(x, y)| x + y).collect(), ..a }
+            blobs(
+                &[-1.0, 1.0]
+                    .map(|side| (20.0 + side * 10.0 * a.cos() + d[0], 15.0 + side * 10.0 * a.sin() + d[1], 0.7)),
+            )
         };
         let (rendered, photo) = (pair(0.0, [0.0, 0.0]), pair(turn, [0.3, -0.2]));
         let w = warp(&rendered, &photo, [20.0, 15.0], Free { zoom: true, roll: true });
@@ -342,12 +346,10 @@ mod tests {
             height: 30,
         };
         let seen = |cam: &Camera| {
-            let blobs: Vec<Image> = [Vec3::new(-0.5, 0.3, 0.0), Vec3::new(0.5, -0.1, 0.0)]
-                .iter()
-                .map(|p| cam.project(p).unwrap())
-                .map(|(x, y)| sized_blob(40, 30, x, y, 0.7))
-                .collect();
-            Image { data: blobs[0].data.iter().zip(&blobs[1].data).map(|(a, b)| a + b).collect(), ..blobs[0].clone() }
+            blobs(&[Vec3::new(-0.5, 0.3, 0.0), Vec3::new(0.5, -0.1, 0.0)].map(|p| {
+                let (x, y) = cam.project(&p).unwrap();
+                (x, y, 0.7)
+            }))
         };
         let turn = 0.05;
         let w = warp(&seen(&camera), &seen(&camera.roll(turn)), [20.0, 15.0], Free { zoom: true, roll: true });
