@@ -293,6 +293,13 @@ fn the_rig_is_fitted_under_multiple_scattering_only_where_the_probe_finds_the_li
     let (model, lit, moved) = rig("below", r#", "rig_lit_share": 0.0"#);
     assert_eq!((model, lit), (json!("multiple"), share), "the same probe");
     assert_ne!(moved, cameras);
+    // Turned cameras: written only where fitted, their mean taken out, and a column of the summary.
+    assert!(cameras.as_array().unwrap().iter().all(|c| c.get("roll_deg").is_none()), "{cameras}");
+    let (_, _, turned) = rig("turned", r#", "rig_lit_share": null, "roll": true"#);
+    let turns: Vec<f64> = turned.as_array().unwrap().iter().map(|c| c["roll_deg"].as_f64().unwrap()).collect();
+    assert!(turns.iter().sum::<f64>().abs() < 1e-9 && turns.iter().all(|t| t.abs() < 5.0), "{turns:?}");
+    let summary = std::fs::read_to_string(dir.join("turned").join("summary.md")).unwrap();
+    assert!(summary.contains("turn (degrees)"), "{summary}");
 }
 
 #[test]
