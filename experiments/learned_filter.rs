@@ -19,7 +19,7 @@
 use clap::Parser;
 use dualphoton::capture::density::{made_truth, plume_in_box};
 use dualphoton::capture::fit::{fit, fit_from, fit_lighting, training_rmse, Fit};
-use dualphoton::capture::frame::{check, held_out_view, read, Roles};
+use dualphoton::capture::frame::{check, held_out_view, read, CameraChoice, Roles};
 use dualphoton::capture::learned_filter::Normal;
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
@@ -58,12 +58,10 @@ struct Args {
     /// Ridge weight, relative to the sums' mean diagonal.
     #[arg(long, default_value_t = 1e-3)]
     ridge: f64,
-    /// The held-out camera (default: the calibration's test camera), in both captures.
-    #[arg(long)]
-    held_out: Option<String>,
-    /// Cameras left out of everything, in both captures.
-    #[arg(long, value_delimiter = ',')]
-    drop: Vec<String>,
+    /// The held-out and the dropped cameras, the same in both captures.
+    #[command(flatten)]
+    #[serde(flatten)]
+    cameras: CameraChoice,
     /// Fit settings (JSON; fields not given keep their defaults).
     #[arg(long)]
     fit_settings: Option<PathBuf>,
@@ -127,7 +125,7 @@ fn run(args: Args) -> Result<()> {
     let scored_truth = made_truth(&args.data).ok();
     let open = |data: &Path, frames: &[usize]| -> Result<(Capture, Roles)> {
         let capture = calibration::open(data, None)?;
-        let roles = Roles::choose(&capture, args.held_out.as_deref(), &args.drop)?;
+        let roles = args.cameras.roles(&capture)?;
         check(&capture, &roles, frames, &settings)?;
         Ok((capture, roles))
     };

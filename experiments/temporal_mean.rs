@@ -17,7 +17,7 @@
 
 use clap::Parser;
 use dualphoton::capture::fit::{fit, fit_from, fit_lighting, training_rmse, Fit};
-use dualphoton::capture::frame::{check, held_out_view, read, FrameImages, Roles};
+use dualphoton::capture::frame::{check, held_out_view, read, CameraChoice, FrameImages, Roles};
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::temporal::{mean_onto, Shift};
@@ -48,12 +48,9 @@ struct Args {
     /// Image models.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "multiple")]
     models: Vec<ImageModel>,
-    /// The held-out camera (default: the calibration's test camera).
-    #[arg(long)]
-    held_out: Option<String>,
-    /// Cameras left out of everything (to study on training cameras alone).
-    #[arg(long, value_delimiter = ',')]
-    drop: Vec<String>,
+    #[command(flatten)]
+    #[serde(flatten)]
+    cameras: CameraChoice,
     /// Fit settings (JSON; fields not given keep their defaults).
     #[arg(long)]
     fit_settings: Option<PathBuf>,
@@ -94,7 +91,7 @@ fn run(args: Args) -> Result<()> {
         return Err(Error("--frames and --models: give at least one each; --reach: at least 1".into()));
     }
     let capture = calibration::open(&args.data, None)?;
-    let roles = Roles::choose(&capture, args.held_out.as_deref(), &args.drop)?;
+    let roles = args.cameras.roles(&capture)?;
     let settings = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
     let count = capture.frame_count();
     if let Some(f) = args.frames.iter().find(|&&f| f < args.reach || f + args.reach >= count) {

@@ -19,7 +19,7 @@ mod models;
 mod resume;
 
 use clap::Parser;
-use dualphoton::capture::frame::{self, Roles};
+use dualphoton::capture::frame::{self, CameraChoice};
 use dualphoton::capture::scalarflow_cameras::held_out_zoom;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::{calibration, frames, protocol::Protocol, Capture};
@@ -47,18 +47,15 @@ struct Args {
     /// Frames scored.
     #[arg(long, value_delimiter = ',', default_value = "0,10,20,30,40,50,60,70,80,90,100,110,119")]
     frames: Vec<usize>,
-    /// The held-out camera (default: the calibration's test camera).
-    #[arg(long)]
-    held_out: Option<String>,
     /// Image models fitted (none: the baselines only).
     #[arg(long, value_delimiter = ',', default_value = "multiple,single,emission-absorption")]
     models: Vec<ImageModel>,
     /// Fit settings (JSON; fields not given keep their defaults), for studies.
     #[arg(long)]
     fit_settings: Option<PathBuf>,
-    /// Cameras left out of everything (to study settings on training cameras alone).
-    #[arg(long, value_delimiter = ',')]
-    drop: Vec<String>,
+    #[command(flatten)]
+    #[serde(flatten)]
+    cameras: CameraChoice,
     /// Output directory.
     #[arg(long, default_value = "results/scalarflow_real")]
     out: PathBuf,
@@ -81,7 +78,7 @@ fn main() -> std::process::ExitCode {
 
 fn run(args: Args) -> Result<()> {
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
-    let roles = Roles::choose(&capture, args.held_out.as_deref(), &args.drop)?;
+    let roles = args.cameras.roles(&capture)?;
     let held_out = roles.held_out[0];
     let fit_settings = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
     if let Some(path) = &args.held_out_focal_lengths {

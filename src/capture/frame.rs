@@ -13,6 +13,7 @@ use super::{frames, Capture, Frames};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::math::Vec3;
+use serde::Serialize;
 use std::time::Instant;
 
 /// Which cameras train and which are held out.
@@ -22,6 +23,25 @@ pub struct Roles {
     pub training: Vec<usize>,
     /// Held-out cameras: scored, never fitted.
     pub held_out: Vec<usize>,
+}
+
+/// Which camera a study holds out and which it leaves out, as its command
+/// line names them ([`Roles::choose`]).
+#[derive(Clone, Debug, Default, clap::Args, Serialize)]
+pub struct CameraChoice {
+    /// The held-out camera (default: the calibration's test camera).
+    #[arg(long)]
+    pub held_out: Option<String>,
+    /// Cameras left out of everything (to study settings on training cameras alone).
+    #[arg(long, value_delimiter = ',')]
+    pub drop: Vec<String>,
+}
+
+impl CameraChoice {
+    /// The roles this choice gives the cameras of `capture`.
+    pub fn roles(&self, capture: &Capture) -> Result<Roles> {
+        Roles::choose(capture, self.held_out.as_deref(), &self.drop)
+    }
 }
 
 impl Roles {
