@@ -239,16 +239,23 @@ mod tests {
     use crate::math::Vec3;
     use crate::scene::Lens;
 
-    #[test]
-    fn corrections_move_each_camera_in_the_working_resolutions_pixels() {
-        let base = Camera {
-            position: Vec3::new(0.0, 0.0, 2.0),
+    /// A `width` x `height` camera at `distance` on the z axis looking at
+    /// the origin, focal length `f` pixels, the principal point at the centre.
+    fn on_the_z_axis(distance: f64, f: f64, width: usize, height: usize) -> Camera {
+        let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
+        Camera {
+            position: Vec3::new(0.0, 0.0, distance),
             look_at: Vec3::zeros(),
             up: Vec3::new(0.0, 1.0, 0.0),
-            lens: Lens::Pinhole { fx: 50.0, fy: 50.0, cx: 32.0, cy: 24.0 },
-            width: 64,
-            height: 48,
-        };
+            lens: Lens::Pinhole { fx: f, fy: f, cx, cy },
+            width,
+            height,
+        }
+    }
+
+    #[test]
+    fn corrections_move_each_camera_in_the_working_resolutions_pixels() {
+        let base = on_the_z_axis(2.0, 50.0, 64, 48);
         let fixed =
             Corrections { offsets_px: vec![[16.0, -8.0], [0.0; 2]], zooms: vec![1.05, 1.0], rolls: vec![0.0; 2] };
         let (moved, offsets) = fixed.apply(&[base.clone(), base.clone()], 8).unwrap();
@@ -337,14 +344,7 @@ mod tests {
     fn the_roll_found_is_the_turn_of_the_camera_that_took_the_photograph() {
         // Blobs where two points appear to a camera, and to the same camera
         // turned about its optical axis: the warp's roll is the camera's turn.
-        let camera = Camera {
-            position: Vec3::new(0.0, 0.0, 3.0),
-            look_at: Vec3::zeros(),
-            up: Vec3::new(0.0, 1.0, 0.0),
-            lens: Lens::Pinhole { fx: 60.0, fy: 60.0, cx: 20.0, cy: 15.0 },
-            width: 40,
-            height: 30,
-        };
+        let camera = on_the_z_axis(3.0, 60.0, 40, 30);
         let seen = |cam: &Camera| {
             blobs(&[Vec3::new(-0.5, 0.3, 0.0), Vec3::new(0.5, -0.1, 0.0)].map(|p| {
                 let (x, y) = cam.project(&p).unwrap();
