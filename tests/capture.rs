@@ -300,6 +300,9 @@ fn the_rig_is_fitted_under_multiple_scattering_only_where_the_probe_finds_the_li
     assert!(turns.iter().sum::<f64>().abs() < 1e-9 && turns.iter().all(|t| t.abs() < 5.0), "{turns:?}");
     let summary = std::fs::read_to_string(dir.join("turned").join("summary.md")).unwrap();
     assert!(summary.contains("turn (degrees)"), "{summary}");
+    // A second round, fitted from the first's corrections, moves the cameras on.
+    let (_, _, again) = rig("rounds", r#", "rig_lit_share": null, "rig_rounds": 2"#);
+    assert_ne!(again, cameras);
 }
 
 #[test]

@@ -16,7 +16,7 @@
 //! under multiple scattering. The held-out camera is not part of the rig.
 
 use super::align::{take_out_shared, Corrections};
-use super::fit::{fit, Fit};
+use super::fit::{fit, fit_aligning_from, Fit};
 use super::observe::observe;
 use super::settings::{FitSettings, ImageModel};
 use super::Capture;
@@ -115,16 +115,20 @@ impl Rig {
             ..settings.clone()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;
-        let mut fit_under = |model: ImageModel, i: usize| {
+        let mut fit_under = |model: ImageModel, i: usize, from: Option<&Corrections>| {
             let settings = FitSettings { model, ..settings.clone() };
-            let fitted = fit(&observed.cameras, &observed.images[i], smoke_box, &settings, None, &mut |_| {})?;
+            let (cameras, images) = (&observed.cameras, &observed.images[i]);
+            let fitted = match from {
+                None => fit(cameras, images, smoke_box, &settings, None, &mut |_| {})?,
+                Some(from) => fit_aligning_from(cameras, images, smoke_box, &settings, from, &mut |_| {})?,
+            };
             progress(frames[i], &fitted);
             Ok::<Fit, crate::error::Error>(fitted)
         };
         let mut fits = Vec::new();
         let (mut model, mut lit_share) = (settings.rig_model, None);
         if let (Some(bound), true) = (settings.rig_lit_share, model != ImageModel::Multiple) {
-            let probe = fit_under(ImageModel::Multiple, 0)?;
+            let probe = fit_under(ImageModel::Multiple, 0, None)?;
             let share = probe.light_share.unwrap_or(0.0);
             lit_share = Some(share);
             if share > bound {
@@ -133,35 +137,50 @@ impl Rig {
             }
         }
         for i in fits.len()..frames.len() {
-            fits.push(fit_under(model, i)?);
+            fits.push(fit_under(model, i, None)?);
         }
-        let median = |values: Vec<f64>| {
-            let mut v = values;
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
-        let cameras: Vec<RigCamera> = training
-            .iter()
-            .enumerate()
-            .map(|(c, &v)| RigCamera {
-                name: capture.views[v].name.clone(),
-                offset_px: [0, 1].map(|a| median(fits.iter().map(|f| f.offsets_px()[c][a]).collect())),
-                zoom: median(fits.iter().map(|f| f.zooms[c]).collect()),
-                roll_deg: median(fits.iter().map(|f| f.rolls[c].to_degrees()).collect()),
-            })
-            .collect();
-        let cameras = centred(cameras);
+        let mut cameras = medians(capture, training, &fits);
+        for _ in 1..settings.rig_rounds {
+            let from = corrections_of(&cameras);
+            let fits = (0..frames.len()).map(|i| fit_under(model, i, Some(&from))).collect::<Result<Vec<Fit>>>()?;
+            cameras = medians(capture, training, &fits);
+        }
         Ok(Rig { frames, cameras, seconds: start.elapsed().as_secs_f64(), model: Some(model), lit_share })
     }
 
     /// The corrections a fit starts from, in the training cameras' order.
     pub fn corrections(&self) -> Corrections {
-        Corrections {
-            offsets_px: self.cameras.iter().map(|c| c.offset_px).collect(),
-            zooms: self.cameras.iter().map(|c| c.zoom).collect(),
-            rolls: self.cameras.iter().map(|c| c.roll_deg.to_radians()).collect(),
-        }
+        corrections_of(&self.cameras)
     }
+}
+
+/// The corrections of a rig's `cameras`, in their order.
+fn corrections_of(cameras: &[RigCamera]) -> Corrections {
+    Corrections {
+        offsets_px: cameras.iter().map(|c| c.offset_px).collect(),
+        zooms: cameras.iter().map(|c| c.zoom).collect(),
+        rolls: cameras.iter().map(|c| c.roll_deg.to_radians()).collect(),
+    }
+}
+
+/// Per training camera, the median of `fits`' corrections, [`centred`].
+fn medians(capture: &Capture, training: &[usize], fits: &[Fit]) -> Vec<RigCamera> {
+    let median = |values: Vec<f64>| {
+        let mut v = values;
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let cameras: Vec<RigCamera> = training
+        .iter()
+        .enumerate()
+        .map(|(c, &v)| RigCamera {
+            name: capture.views[v].name.clone(),
+            offset_px: [0, 1].map(|a| median(fits.iter().map(|f| f.offsets_px()[c][a]).collect())),
+            zoom: median(fits.iter().map(|f| f.zooms[c]).collect()),
+            roll_deg: median(fits.iter().map(|f| f.rolls[c].to_degrees()).collect()),
+        })
+        .collect();
+    centred(cameras)
 }
 
 /// `cameras` with their offsets' and turns' means taken out and their
