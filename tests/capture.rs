@@ -579,6 +579,11 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
 /// in the middle of every view, black at its corners (the threshold), and
 /// the ambient term's share and the lights' places changing the images. A
 /// bad share is refused before any output.
+/// A CSV file's rows after its header, each as its fields.
+fn csv_rows(text: &str) -> Vec<Vec<String>> {
+    csv::Reader::from_reader(text.as_bytes()).records().map(|r| r.unwrap().iter().map(String::from).collect()).collect()
+}
+
 #[test]
 fn made_capture_writes_a_capture_that_reads_back() {
     let dir = temp_dir("made_capture");
@@ -712,10 +717,7 @@ fn made_capture_writes_a_capture_that_reads_back() {
     let ok = temporal(&[&args[..], &[small.to_str().unwrap()]].concat(), &temporal_out);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let csv = std::fs::read_to_string(temporal_out.join("temporal.csv")).unwrap();
-    let rows: Vec<Vec<String>> = csv::Reader::from_reader(csv.as_bytes())
-        .records()
-        .map(|r| r.unwrap().iter().map(String::from).collect())
-        .collect();
+    let rows = csv_rows(&csv);
     let arms: Vec<(&str, &str)> = rows.iter().map(|r| (r[2].as_str(), r[3].as_str())).collect();
     assert_eq!(
         arms,
@@ -752,10 +754,7 @@ fn made_capture_writes_a_capture_that_reads_back() {
     let ok = learned(&["--learn-frames", "0,2", "--frames", "1"], &filter_out);
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let csv = std::fs::read_to_string(filter_out.join("learned_filter.csv")).unwrap();
-    let rows: Vec<Vec<String>> = csv::Reader::from_reader(csv.as_bytes())
-        .records()
-        .map(|r| r.unwrap().iter().map(String::from).collect())
-        .collect();
+    let rows = csv_rows(&csv);
     let arms: Vec<&str> = rows.iter().map(|r| r[1].as_str()).collect();
     assert_eq!(arms, ["fit", "fit, held", "filtered, held", "refit from filtered"], "{csv}");
     assert!(rows.iter().all(|r| r[5].parse::<f64>().is_ok_and(|e| e > 0.0)), "a density error per arm: {csv}");
