@@ -170,12 +170,13 @@ fn medians(capture: &Capture, training: &[usize], fits: &[Fit]) -> Vec<RigCamera
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
+    let offsets: Vec<Vec<[f64; 2]>> = fits.iter().map(Fit::offsets_px).collect();
     let cameras: Vec<RigCamera> = training
         .iter()
         .enumerate()
         .map(|(c, &v)| RigCamera {
             name: capture.views[v].name.clone(),
-            offset_px: [0, 1].map(|a| median(fits.iter().map(|f| f.offsets_px()[c][a]).collect())),
+            offset_px: [0, 1].map(|a| median(offsets.iter().map(|o| o[c][a]).collect())),
             zoom: median(fits.iter().map(|f| f.zooms[c]).collect()),
             roll_deg: median(fits.iter().map(|f| f.rolls[c].to_degrees()).collect()),
         })
