@@ -109,7 +109,7 @@ impl Lights {
                     .collect()
             }
             // Every other one of the six candidates around the box: azimuths 0, 120, 240.
-            Lights::Candidates => candidate_lights(lo, hi)
+            Lights::Candidates => candidate_lights(lo, hi, 0.0)
                 .into_iter()
                 .step_by(2)
                 .take(3)

@@ -40,7 +40,7 @@ pub struct FitResult {
     pub fit_s: f64,
     #[serde(serialize_with = "fmt::f1")]
     pub render_s: f64,
-    /// The fitted lights' intensities (`;`-separated).
+    /// The fitted lights' intensities (`;`-separated; a disc's points in turn).
     pub lights: String,
     #[serde(serialize_with = "fmt::e6")]
     pub emission: f64,

@@ -24,7 +24,7 @@ use super::align::{take_out_shared, warp, Corrections, Free};
 use super::density::{
     cube_around, decoder_start, grid_shape, in_box, start_density, start_shape, upsample, voxel_params, Params,
 };
-use super::lighting::{candidate_lights, fit_gains, fit_lights, light_share, place_lights, weights_of};
+use super::lighting::{candidate_lights, disc_points, fit_gains, fit_lights, light_share, place_lights, weights_of};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use super::priors::{smoothness, sparsity, total_variation};
 use super::settings::{FitSettings, ImageModel};
@@ -276,7 +276,11 @@ impl<'a> FrameFit<'a> {
                 max_order: settings.model.max_order(settings.orders),
                 emission: 0.0,
             },
-            lights: if settings.model.lit() { candidate_lights(&lo, &hi) } else { Vec::new() },
+            lights: if settings.model.lit() {
+                candidate_lights(&lo, &hi, settings.light_radius_deg)
+            } else {
+                Vec::new()
+            },
             cameras,
             render: RenderSettings {
                 photons: if settings.model == ImageModel::Multiple { settings.photons } else { 0 },
@@ -409,9 +413,10 @@ impl<'a> FrameFit<'a> {
     /// settings fit them, the gains. Returns the targets and the unit renders.
     fn refit_lighting(&mut self, gains: bool) -> Result<(Vec<Image>, Vec<Vec<Image>>)> {
         let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
-        let basis = fit_lights(&mut self.scene, &targets, self.ambient, &mut self.renders)?;
+        let per = disc_points(self.settings.light_radius_deg);
+        let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
         if self.settings.gains && gains {
-            fit_gains(&mut self.gains, &weights_of(&self.scene), &basis, &targets);
+            fit_gains(&mut self.gains, &weights_of(&self.scene, per), &basis, &targets);
             self.images = self.photographs.iter().zip(&self.gains).map(|(p, g)| p.map(|v| v / g)).collect();
         }
         Ok((targets, basis))
@@ -458,9 +463,10 @@ impl<'a> FrameFit<'a> {
     /// The lights and emission fitted once more to the last density: the fit.
     fn finish(mut self) -> Result<Fit> {
         let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
-        let basis = fit_lights(&mut self.scene, &targets, self.ambient, &mut self.renders)?;
+        let per = disc_points(self.settings.light_radius_deg);
+        let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
         let model = self.settings.model;
-        let light_share = if model.lit() { light_share(&basis, &weights_of(&self.scene)) } else { None };
+        let light_share = if model.lit() { light_share(&basis, &weights_of(&self.scene, per)) } else { None };
         Ok(Fit {
             scene: self.scene,
             settings: self.settings.clone(),
@@ -787,7 +793,7 @@ mod tests {
         let mut truth = Scene {
             density: density.clone(),
             medium: Medium { sigma_t_scale: 1.0, albedo: 1.0, g: settings.g, max_order: 1, emission: 0.0 },
-            lights: candidate_lights(&smoke_box.0, &smoke_box.1),
+            lights: candidate_lights(&smoke_box.0, &smoke_box.1, 0.0),
             cameras: cameras.to_vec(),
             render: RenderSettings { photons: 0, spp: 8, seed: 99, ..RenderSettings::default() },
         };

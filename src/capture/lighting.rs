@@ -18,14 +18,53 @@ use crate::scene::{Light, Scene};
 /// from its centre), six around it 20 degrees above its centre (every 60
 /// degrees of azimuth about the up axis +y, starting at +x) plus one above
 /// and one below. Their intensities are fitted (most end at 0): a fixed
-/// basis able to express a few studio lights in unknown places.
-pub fn candidate_lights(lo: &Vec3, hi: &Vec3) -> Vec<Light> {
+/// basis able to express a few studio lights in unknown places. With
+/// `radius_deg` > 0 each is a disc facing the box's centre, of that
+/// angular radius seen from it, as studio softboxes are: [`disc_points`]
+/// point lights in turn, sharing its intensity. 0: points.
+pub fn candidate_lights(lo: &Vec3, hi: &Vec3, radius_deg: f64) -> Vec<Light> {
     let centre = (lo + hi) / 2.0;
     let distance = 2.0 * (hi - lo).norm();
     let mut dirs: Vec<Vec3> = (0..6).map(|k| direction(k as f64 * 60.0, 20.0)).collect();
     dirs.push(Vec3::new(0.0, 1.0, 0.0));
     dirs.push(Vec3::new(0.0, -1.0, 0.0));
-    dirs.into_iter().map(|d| Light { position: centre + d * distance, intensity: 0.0 }).collect()
+    dirs.into_iter()
+        .flat_map(|d| {
+            let radius = distance * radius_deg.to_radians().tan();
+            disc(&(centre + d * distance), &d, radius, disc_points(radius_deg))
+        })
+        .map(|position| Light { position, intensity: 0.0 })
+        .collect()
+}
+
+/// How many point lights sample a candidate of angular radius
+/// `radius_deg`: its centre and a ring of six, or the point alone at 0.
+pub fn disc_points(radius_deg: f64) -> usize {
+    if radius_deg > 0.0 {
+        7
+    } else {
+        1
+    }
+}
+
+/// `n` points (1 or 7) standing for a disc of `radius` about `centre`,
+/// perpendicular to `normal`: its centre, then six on the ring through the
+/// centroid of the outer six sevenths of its area (an equal-area split).
+fn disc(centre: &Vec3, normal: &Vec3, radius: f64, n: usize) -> Vec<Vec3> {
+    if n == 1 {
+        return vec![*centre];
+    }
+    let helper = if normal.y.abs() > 0.9 { Vec3::new(1.0, 0.0, 0.0) } else { Vec3::new(0.0, 1.0, 0.0) };
+    let a = normal.cross(&helper).normalize();
+    let b = normal.cross(&a);
+    let inner = 1.0 / 7f64.sqrt();
+    let ring = radius * (2.0 / 3.0) * (1.0 - inner.powi(3)) / (1.0 - inner.powi(2));
+    std::iter::once(*centre)
+        .chain((0..6).map(|k| {
+            let t = k as f64 * std::f64::consts::PI / 3.0;
+            centre + (a * t.cos() + b * t.sin()) * ring
+        }))
+        .collect()
 }
 
 /// The unit direction at `azimuth` degrees about the up axis +y (0 at +x,
@@ -37,14 +76,20 @@ pub fn direction(azimuth: f64, elevation: f64) -> Vec3 {
 }
 
 /// One render per light of `scene` (intensity 1, no emission) and one of
-/// the emission alone, the `b`-th from seed `seed + b`.
-fn unit_renders(scene: &Scene, seed: u64) -> Vec<Vec<Image>> {
-    (0..=scene.lights.len())
+/// the emission alone, the `b`-th from seed `seed + b`. A light is `per`
+/// consecutive point lights of `scene` (a disc's), each at 1 / `per`.
+fn unit_renders(scene: &Scene, per: usize, seed: u64) -> Vec<Vec<Image>> {
+    let lights = scene.lights.len() / per;
+    (0..=lights)
         .map(|b| {
             let mut one = scene.clone();
             one.render.seed = seed.wrapping_add(b as u64);
-            one.medium.emission = if b == scene.lights.len() { 1.0 } else { 0.0 };
-            one.lights.iter_mut().enumerate().for_each(|(m, light)| light.intensity = if m == b { 1.0 } else { 0.0 });
+            one.medium.emission = if b == lights { 1.0 } else { 0.0 };
+            let share = 1.0 / per as f64;
+            one.lights
+                .iter_mut()
+                .enumerate()
+                .for_each(|(m, light)| light.intensity = if m / per == b { share } else { 0.0 });
             render_photon(&one).images
         })
         .collect()
@@ -53,38 +98,44 @@ fn unit_renders(scene: &Scene, seed: u64) -> Vec<Vec<Image>> {
 /// Sets the lights' intensities and the emission of `scene` to their
 /// non-negative least-squares fit to `targets`: the image is linear in
 /// them, so one render per light (intensity 1, no emission) and one of the
-/// emission alone give it exactly. Returns those renders.
+/// emission alone give it exactly. A light is `per` consecutive point
+/// lights of `scene` ([`candidate_lights`]' discs). Returns those renders.
 pub(super) fn fit_lights(
     scene: &mut Scene,
     targets: &[Image],
     ambient: bool,
+    per: usize,
     renders: &mut u64,
 ) -> Result<Vec<Vec<Image>>> {
     let seed = scene.render.seed.wrapping_add(*renders);
-    *renders += scene.lights.len() as u64 + 1;
-    let basis = unit_renders(scene, seed);
+    *renders += (scene.lights.len() / per) as u64 + 1;
+    let basis = unit_renders(scene, per, seed);
     let weights = light_weights(&basis, targets, ambient);
     if weights.iter().all(|&w| w == 0.0) {
         // Nothing rendered (the density has gone to 0 where the images are
         // black): the last intensities stay, so the density can grow back.
         return Ok(basis);
     }
-    set_weights(scene, &weights);
+    set_weights(scene, &weights, per);
     Ok(basis)
 }
 
-/// The lights' intensities, then the emission.
-fn set_weights(scene: &mut Scene, weights: &[f64]) {
-    for (light, w) in scene.lights.iter_mut().zip(weights) {
-        light.intensity = *w;
+/// The lights' intensities, then the emission; each light's shared by
+/// its `per` point lights.
+fn set_weights(scene: &mut Scene, weights: &[f64], per: usize) {
+    for (m, light) in scene.lights.iter_mut().enumerate() {
+        light.intensity = weights[m / per] / per as f64;
     }
     scene.medium.emission = *weights.last().unwrap();
 }
 
 /// The lights' intensities, then the emission, of `scene`: the weights of
-/// its unit renders.
-pub(super) fn weights_of(scene: &Scene) -> Vec<f64> {
-    scene.lights.iter().map(|l| l.intensity).chain([scene.medium.emission]).collect()
+/// its unit renders, a light being `per` point lights.
+pub(super) fn weights_of(scene: &Scene, per: usize) -> Vec<f64> {
+    let mut weights = vec![0.0; scene.lights.len() / per];
+    scene.lights.iter().enumerate().for_each(|(m, l)| weights[m / per] += l.intensity);
+    weights.push(scene.medium.emission);
+    weights
 }
 
 /// Camera `c`'s render: `basis` (unit renders) weighted by `weights`.
@@ -134,6 +185,7 @@ pub(super) fn fit_gains(gains: &mut [f64], weights: &[f64], basis: &[Vec<Image>]
 /// images at the new places, intensities fitted again from renders of the
 /// same seeds, agree better with `targets`. A place within the box's
 /// diagonal of its centre is refused: the lights are outside the set.
+/// Point lights only (each light one point of `scene`).
 pub(super) fn place_lights(
     scene: &mut Scene,
     targets: &[Image],
@@ -144,7 +196,7 @@ pub(super) fn place_lights(
     renders: &mut u64,
 ) {
     if scene.lights.len() > keep {
-        let share = parts(basis, &weights_of(scene));
+        let share = parts(basis, &weights_of(scene, 1));
         let mut order: Vec<usize> = (0..scene.lights.len()).collect();
         order.sort_by(|&a, &b| share[b].total_cmp(&share[a]));
         let mut kept = order[..keep].to_vec();
@@ -155,12 +207,12 @@ pub(super) fn place_lights(
     // current places by the places alone, not by the renders' noise.
     let seed = scene.render.seed.wrapping_add(*renders);
     *renders += scene.lights.len() as u64 + 1;
-    let basis = unit_renders(scene, seed);
+    let basis = unit_renders(scene, 1, seed);
     let weights = light_weights(&basis, targets, ambient);
     if weights.iter().all(|&w| w == 0.0) {
         return;
     }
-    set_weights(scene, &weights);
+    set_weights(scene, &weights, 1);
     let error = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
     let r = residual(&basis, &weights, targets);
     let before = error(&r);
@@ -179,10 +231,10 @@ pub(super) fn place_lights(
         let mut trial = scene.clone();
         trial.lights.iter_mut().zip(&moves).for_each(|(l, d)| l.position += d);
         if trial.lights.iter().all(|l| (l.position - centre).norm() > diagonal) {
-            let trial_basis = unit_renders(&trial, seed);
+            let trial_basis = unit_renders(&trial, 1, seed);
             let trial_weights = light_weights(&trial_basis, targets, ambient);
             if error(&residual(&trial_basis, &trial_weights, targets)) < before {
-                set_weights(&mut trial, &trial_weights);
+                set_weights(&mut trial, &trial_weights, 1);
                 *scene = trial;
                 *damping = (*damping / 3.0).max(1e-6);
                 return;
@@ -287,10 +339,9 @@ mod tests {
         assert!((gains[0] - 1.2 / mean).abs() < 1e-12 && (gains[1] - 0.8 / mean).abs() < 1e-12, "{gains:?}");
     }
 
-    /// A light put 25 degrees away from where it lit the target images
-    /// (and too weak) is moved back towards its place.
-    #[test]
-    fn a_misplaced_light_moves_back_towards_its_place() {
+    /// A lopsided ball of smoke seen by three cameras, lit by `lights`
+    /// (single scattering, no photons: the renders' noise is small).
+    fn ball_scene(lights: Vec<Light>) -> Scene {
         use crate::scene::Lens;
         let (lo, hi) = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
         let mut density = Grid::new(lo, hi, [10, 10, 10], vec![0.0; 1000]);
@@ -311,14 +362,21 @@ mod tests {
             width: 24,
             height: 24,
         };
-        let place = Vec3::new(2.5, 1.0, 1.0);
-        let mut scene = Scene {
+        Scene {
             density,
             medium: Medium { sigma_t_scale: 1.0, albedo: 1.0, g: 0.6, max_order: 1, emission: 0.0 },
-            lights: vec![Light { position: place, intensity: 5.0 }],
+            lights,
             cameras: vec![camera(0.0, 3.0), camera(3.0, 0.0), camera(-2.1, 2.1)],
             render: RenderSettings { photons: 0, spp: 4, ..RenderSettings::default() },
-        };
+        }
+    }
+
+    /// A light put 25 degrees away from where it lit the target images
+    /// (and too weak) is moved back towards its place.
+    #[test]
+    fn a_misplaced_light_moves_back_towards_its_place() {
+        let place = Vec3::new(2.5, 1.0, 1.0);
+        let mut scene = ball_scene(vec![Light { position: place, intensity: 5.0 }]);
         let targets = render_photon(&scene).images;
         let turn = 25f64.to_radians();
         let start = Vec3::new(
@@ -329,11 +387,55 @@ mod tests {
         scene.lights[0] = Light { position: start, intensity: 2.0 };
         let (mut damping, mut renders) = (1e-3, 0);
         for _ in 0..12 {
-            let basis = fit_lights(&mut scene, &targets, true, &mut renders).unwrap();
+            let basis = fit_lights(&mut scene, &targets, true, 1, &mut renders).unwrap();
             place_lights(&mut scene, &targets, &basis, 1, true, &mut damping, &mut renders);
         }
         let angle = |p: &Vec3| p.normalize().dot(&place.normalize()).clamp(-1.0, 1.0).acos().to_degrees();
         let now = angle(&scene.lights[0].position);
         assert!(now < 2.0, "the light is {now:.1} degrees from its place (it started 25 degrees away)");
+    }
+
+    /// Each disc is seven points about its candidate's place, in the plane
+    /// facing the box's centre, within its angular radius of that place.
+    #[test]
+    fn a_disc_candidate_is_seven_points_about_the_point_candidate() {
+        let (lo, hi) = (Vec3::new(-0.3, 0.0, -0.2), Vec3::new(0.3, 1.0, 0.2));
+        let centre = (lo + hi) / 2.0;
+        let points = candidate_lights(&lo, &hi, 0.0);
+        let discs = candidate_lights(&lo, &hi, 15.0);
+        assert_eq!(discs.len(), 7 * points.len());
+        for (p, disc) in points.iter().zip(discs.chunks(7)) {
+            let mean = disc.iter().map(|l| l.position).sum::<Vec3>() / 7.0;
+            assert!((mean - p.position).norm() < 1e-9 * p.position.norm(), "{mean:?} {:?}", p.position);
+            let axis = (p.position - centre).normalize();
+            for l in &disc[1..] {
+                let off = l.position - p.position;
+                assert!(off.dot(&axis).abs() < 1e-9, "not in the disc's plane");
+                let angle = (l.position - centre).normalize().dot(&axis).acos().to_degrees();
+                assert!(angle > 5.0 && angle < 15.0, "{angle} degrees");
+            }
+        }
+    }
+
+    /// A disc's intensity is shared by its points, and the fit recovers the
+    /// discs' intensities from images they lit.
+    #[test]
+    fn disc_lights_are_fitted_as_one_light_each() {
+        let (lo, hi) = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+        let mut truth = ball_scene(candidate_lights(&lo, &hi, 20.0));
+        let mut weights = vec![0.0; 9];
+        (weights[0], weights[3], weights[6]) = (2.0, 1.0, 0.0);
+        set_weights(&mut truth, &weights, 7);
+        assert!(truth.lights[..7].iter().all(|l| (l.intensity - 2.0 / 7.0).abs() < 1e-15));
+        let back = weights_of(&truth, 7);
+        assert!(back.iter().zip(&weights).all(|(b, w)| (b - w).abs() < 1e-12), "{back:?}");
+        let targets = render_photon(&truth).images;
+        let mut scene = truth.clone();
+        set_weights(&mut scene, &[0.5; 9], 7);
+        let basis = fit_lights(&mut scene, &targets, true, 7, &mut 1).unwrap();
+        assert_eq!(basis.len(), 9);
+        let fitted = weights_of(&scene, 7);
+        assert!((fitted[0] / 2.0 - 1.0).abs() < 0.05 && (fitted[3] - 1.0).abs() < 0.05, "{fitted:?}");
+        assert!(fitted.iter().enumerate().filter(|(b, _)| ![0, 3].contains(b)).all(|(_, w)| *w < 0.05), "{fitted:?}");
     }
 }

@@ -197,6 +197,11 @@ pub struct FitSettings {
     /// whenever the lights are fitted again. 0: every candidate stays in
     /// its place and only the intensities are fitted.
     pub lights: usize,
+    /// The candidate lights' angular radius seen from the box's centre
+    /// (degrees, below 45): each a disc facing the box, as studio softboxes
+    /// are, whose shadows are soft ([`super::lighting::candidate_lights`]).
+    /// 0: points, by default.
+    pub light_radius_deg: f64,
     /// Fit a gain per training camera (the cameras' brightest smoke differs
     /// by up to about a third between them): the photographs are divided by
     /// their gains, whose geometric mean over the training cameras is held
@@ -282,6 +287,7 @@ impl Default for FitSettings {
             rig_lit_share: Some(0.1),
             aligned_margin: 20.0,
             lights: 0,
+            light_radius_deg: 0.0,
             gains: true,
             ambient: true,
             gamma: 1.0,
@@ -374,6 +380,12 @@ impl FitSettings {
         if !(self.gamma.is_finite() && (0.25..=4.0).contains(&self.gamma)) {
             return bad("gamma must be in [0.25, 4]");
         }
+        if !(self.light_radius_deg.is_finite() && (0.0..45.0).contains(&self.light_radius_deg)) {
+            return bad("light_radius_deg must be in [0, 45) degrees");
+        }
+        if self.lights > 0 && self.light_radius_deg > 0.0 {
+            return bad("lights (fitted places) moves point lights: it needs light_radius_deg 0");
+        }
         if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
             return bad("g must be in (-1, 1) and albedo in [0, 1]");
         }
@@ -402,6 +414,17 @@ mod tests {
         for bound in [0.0, 0.1, 1.0] {
             FitSettings { rig_lit_share: Some(bound), ..FitSettings::default() }.validate().unwrap();
         }
+    }
+
+    #[test]
+    fn a_light_radius_outside_0_to_45_degrees_or_with_fitted_places_is_refused() {
+        for radius in [-1.0, 45.0, f64::NAN] {
+            let err = FitSettings { light_radius_deg: radius, ..FitSettings::default() }.validate().unwrap_err();
+            assert!(err.to_string().contains("light_radius_deg must be in [0, 45)"), "{radius}: {err}");
+        }
+        let err = FitSettings { light_radius_deg: 15.0, lights: 3, ..FitSettings::default() }.validate().unwrap_err();
+        assert!(err.to_string().contains("needs light_radius_deg 0"), "{err}");
+        FitSettings { light_radius_deg: 15.0, ..FitSettings::default() }.validate().unwrap();
     }
 
     #[test]
@@ -452,6 +475,9 @@ mod tests {
                 }
                 n if n.starts_with("res_") => settings.resolution.to_string() == n["res_".len()..],
                 n if n.starts_with("lights_") => settings.lights.to_string() == n["lights_".len()..],
+                n if n.starts_with("light_radius_deg_") => {
+                    settings.light_radius_deg.to_string() == n["light_radius_deg_".len()..]
+                }
                 n if n.starts_with("updates_") => {
                     n["updates_".len()..].split('_').map(|u| u.parse().unwrap()).collect::<Vec<usize>>()
                         == settings.updates
