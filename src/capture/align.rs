@@ -150,7 +150,9 @@ pub fn warp(rendered: &Image, photo: &Image, centre: [f64; 2], free: Free) -> Wa
 }
 
 /// Cameras' corrections found before a fit (a capture's rig, [`super::rig`]):
-/// the fit starts from the corrected cameras and does not move them again.
+/// the fit starts from the corrected cameras and does not move them again,
+/// and holds their gains where its settings say so
+/// ([`super::settings::FitSettings::rig_gains`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Corrections {
     /// Per camera, how far its principal point moves, in pixels of the
@@ -161,6 +163,8 @@ pub struct Corrections {
     /// Per camera, the angle it is turned by about its optical axis
     /// ([`Camera::roll`], radians).
     pub rolls: Vec<f64>,
+    /// Per camera, its gain (their geometric mean 1), where known.
+    pub gains: Option<Vec<f64>>,
 }
 
 impl Corrections {
@@ -168,7 +172,8 @@ impl Corrections {
     /// corrections' order) corrected, and the offsets in their pixels.
     pub fn apply(&self, cameras: &[Camera], factor: usize) -> Result<(Vec<Camera>, Vec<[f64; 2]>)> {
         let n = self.zooms.len();
-        if cameras.len() != n || self.offsets_px.len() != n || self.rolls.len() != n {
+        let gains = self.gains.as_ref().map_or(n, Vec::len);
+        if cameras.len() != n || self.offsets_px.len() != n || self.rolls.len() != n || gains != n {
             return Err(Error(format!("corrections for {} cameras, the fit has {}", self.zooms.len(), cameras.len())));
         }
         let f = factor as f64;
@@ -256,8 +261,12 @@ mod tests {
     #[test]
     fn corrections_move_each_camera_in_the_working_resolutions_pixels() {
         let base = on_the_z_axis(2.0, 50.0, 64, 48);
-        let fixed =
-            Corrections { offsets_px: vec![[16.0, -8.0], [0.0; 2]], zooms: vec![1.05, 1.0], rolls: vec![0.0; 2] };
+        let fixed = Corrections {
+            offsets_px: vec![[16.0, -8.0], [0.0; 2]],
+            zooms: vec![1.05, 1.0],
+            rolls: vec![0.0; 2],
+            gains: None,
+        };
         let (moved, offsets) = fixed.apply(&[base.clone(), base.clone()], 8).unwrap();
         assert_eq!(offsets, vec![[2.0, -1.0], [0.0, 0.0]]);
         let ([fx, fy, cx, cy], [fx0, fy0, cx0, cy0]) = (moved[0].intrinsics(), base.intrinsics());

@@ -225,6 +225,8 @@ struct FrameFit<'a> {
     /// The photographs over their cameras' gains: what the renders are fitted to.
     images: Vec<Image>,
     gains: Vec<f64>,
+    /// Whether the gains are a rig's, held ([`FitSettings::rig_gains`]).
+    gains_held: bool,
     /// The capture's black threshold in linear units.
     threshold: f64,
     offsets: Vec<[f64; 2]>,
@@ -265,6 +267,10 @@ impl<'a> FrameFit<'a> {
         let start = Instant::now();
         let (lo, hi) = smoke_box;
         let photographs: Vec<Image> = codes.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect();
+        let held = fixed.and_then(|f| f.gains.clone()).filter(|_| settings.rig_gains);
+        let gains_held = held.is_some();
+        let gains = held.unwrap_or_else(|| vec![1.0; n]);
+        let images = photographs.iter().zip(&gains).map(|(p, g)| p.map(|v| v / g)).collect();
         let mut smoothness_axes = [settings.horizontal_smoothness; 3];
         smoothness_axes[up_axis(&cameras)] = 1.0;
         let scene = Scene {
@@ -295,9 +301,10 @@ impl<'a> FrameFit<'a> {
             realign: false,
             smoke_box,
             codes,
-            images: photographs.clone(),
+            images,
             photographs,
-            gains: vec![1.0; codes.len()],
+            gains,
+            gains_held,
             threshold: settings.threshold.powf(settings.gamma),
             offsets,
             zooms,
@@ -415,7 +422,7 @@ impl<'a> FrameFit<'a> {
         let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
         let per = disc_points(self.settings.light_radius_deg);
         let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
-        if self.settings.gains && gains {
+        if self.settings.gains && gains && !self.gains_held {
             fit_gains(&mut self.gains, &weights_of(&self.scene, per), &basis, &targets);
             self.images = self.photographs.iter().zip(&self.gains).map(|(p, g)| p.map(|v| v / g)).collect();
         }
@@ -712,8 +719,12 @@ mod tests {
         };
         // Camera 0's move against the other two's, in working pixels.
         let moved = |f: &Fit| f.offsets[0][1] - (f.offsets[1][1] + f.offsets[2][1]) / 2.0;
-        let corrections =
-            |f: &Fit| Corrections { offsets_px: f.offsets_px(), zooms: f.zooms.clone(), rolls: f.rolls.clone() };
+        let corrections = |f: &Fit| Corrections {
+            offsets_px: f.offsets_px(),
+            zooms: f.zooms.clone(),
+            rolls: f.rolls.clone(),
+            gains: None,
+        };
         let first = fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap();
         let second =
             fit_aligning_from(&cameras, &images, smoke_box, &settings, &corrections(&first), &mut |_| {}).unwrap();
@@ -820,6 +831,19 @@ mod tests {
         assert!(done.gains[1] > 1.3 * done.gains[0].max(done.gains[2]), "gains {:?}", done.gains);
         let brighter_error = training_rmse(&done, &brighter);
         assert!(brighter_error < 2.0 * error, "RMSE {brighter_error}, against {error} at gains 1");
+        // A rig's gains are held where the settings say so, fitted where not.
+        let rig = Corrections {
+            offsets_px: vec![[0.0; 2]; 3],
+            zooms: vec![1.0; 3],
+            rolls: vec![0.0; 3],
+            gains: Some(vec![0.8, 1.25, 1.0]),
+        };
+        let held_settings = FitSettings { rig_gains: true, ..settings.clone() };
+        let held =
+            fit_lighting(&cameras, &brighter, smoke_box, truth.density.clone(), &held_settings, Some(&rig)).unwrap();
+        assert_eq!(held.gains, vec![0.8, 1.25, 1.0]);
+        let fitted = fit_lighting(&cameras, &brighter, smoke_box, truth.density, &settings, Some(&rig)).unwrap();
+        assert!(fitted.gains[1] > 1.3 * fitted.gains[0].max(fitted.gains[2]), "gains {:?}", fitted.gains);
     }
 
     /// A photograph through the inverse response, over a camera's gain, comes

@@ -13,9 +13,11 @@
 //! so where a multiple-scattering fit of the first calibration frame gives
 //! the lights a large share of the light
 //! ([`FitSettings::rig_lit_share`]), every calibration frame is fitted
-//! under multiple scattering. The held-out camera is not part of the rig.
+//! under multiple scattering. The rig keeps each camera's gain the same
+//! way, for fits that hold it ([`FitSettings::rig_gains`]). The held-out
+//! camera is not part of the rig.
 
-use super::align::{take_out_shared, Corrections};
+use super::align::{geometric_mean, take_out_shared, Corrections};
 use super::fit::{fit, fit_aligning_from, Fit};
 use super::observe::observe;
 use super::settings::{FitSettings, ImageModel};
@@ -37,11 +39,19 @@ pub struct RigCamera {
     /// ([`crate::scene::Camera::roll`]; 0, and not written, unless fitted).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub roll_deg: f64,
+    /// Its gain: its photograph is its render times this (1 in a rig
+    /// written before gains were kept).
+    #[serde(default = "one")]
+    pub gain: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// The training cameras' corrections, fitted once for every frame: the
-/// offsets' mean is 0 and the magnifications' geometric mean 1, as in a
-/// frame's own alignment.
+/// offsets' mean is 0 and the magnifications' and gains' geometric means
+/// 1, as in a frame's own fit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Rig {
     /// The frames it was fitted on.
@@ -108,6 +118,8 @@ impl Rig {
         let settings = FitSettings {
             align: true,
             shared_alignment: false,
+            // The rig measures the gains that its frames' fits may hold.
+            rig_gains: false,
             factor: settings.rig_factor.unwrap_or(settings.factor),
             // The cameras' alignment, coarse to fine per voxel, whatever the
             // frames' own fits start from: every setting of them sees the same cameras.
@@ -160,6 +172,7 @@ fn corrections_of(cameras: &[RigCamera]) -> Corrections {
         offsets_px: cameras.iter().map(|c| c.offset_px).collect(),
         zooms: cameras.iter().map(|c| c.zoom).collect(),
         rolls: cameras.iter().map(|c| c.roll_deg.to_radians()).collect(),
+        gains: Some(cameras.iter().map(|c| c.gain).collect()),
     }
 }
 
@@ -179,20 +192,23 @@ fn medians(capture: &Capture, training: &[usize], fits: &[Fit]) -> Vec<RigCamera
             offset_px: [0, 1].map(|a| median(offsets.iter().map(|o| o[c][a]).collect())),
             zoom: median(fits.iter().map(|f| f.zooms[c]).collect()),
             roll_deg: median(fits.iter().map(|f| f.rolls[c].to_degrees()).collect()),
+            gain: median(fits.iter().map(|f| f.gains[c]).collect()),
         })
         .collect();
     centred(cameras)
 }
 
 /// `cameras` with their offsets' and turns' means taken out and their
-/// magnifications divided by their geometric mean ([`take_out_shared`]).
+/// magnifications divided by their geometric mean ([`take_out_shared`]),
+/// their gains by theirs.
 fn centred(mut cameras: Vec<RigCamera>) -> Vec<RigCamera> {
     let mut offsets: Vec<[f64; 2]> = cameras.iter().map(|c| c.offset_px).collect();
     let mut zooms: Vec<f64> = cameras.iter().map(|c| c.zoom).collect();
     let mut rolls: Vec<f64> = cameras.iter().map(|c| c.roll_deg).collect();
     take_out_shared(&mut offsets, &mut zooms, &mut rolls);
+    let shared_gain = geometric_mean(&cameras.iter().map(|c| c.gain).collect::<Vec<_>>());
     for (((c, o), k), r) in cameras.iter_mut().zip(offsets).zip(zooms).zip(rolls) {
-        (c.offset_px, c.zoom, c.roll_deg) = (o, k, r);
+        (c.offset_px, c.zoom, c.roll_deg, c.gain) = (o, k, r, c.gain / shared_gain);
     }
     cameras
 }
@@ -202,7 +218,7 @@ mod tests {
     use super::*;
 
     fn camera(name: &str, offset_px: [f64; 2], zoom: f64) -> RigCamera {
-        RigCamera { name: name.into(), offset_px, zoom, roll_deg: 0.0 }
+        RigCamera { name: name.into(), offset_px, zoom, roll_deg: 0.0, gain: zoom }
     }
 
     #[test]
@@ -210,6 +226,7 @@ mod tests {
         let rig = centred(vec![camera("a", [10.0, -4.0], 1.1), camera("b", [2.0, 8.0], 1.1 * 1.21)]);
         assert!((rig[0].offset_px[0] - 4.0).abs() < 1e-12 && (rig[1].offset_px[1] - 6.0).abs() < 1e-12, "{rig:?}");
         assert!((rig[0].zoom * rig[1].zoom - 1.0).abs() < 1e-12 && (rig[1].zoom / rig[0].zoom - 1.21).abs() < 1e-12);
+        assert!((rig[0].gain * rig[1].gain - 1.0).abs() < 1e-12 && (rig[1].gain / rig[0].gain - 1.21).abs() < 1e-12);
     }
 
     #[test]
@@ -223,6 +240,14 @@ mod tests {
         };
         let fixed = rig.corrections();
         assert_eq!((fixed.offsets_px, fixed.zooms), (vec![[16.0, -8.0], [1.0, 2.0]], vec![1.05, 0.95]));
+        assert_eq!(fixed.gains, Some(vec![1.05, 0.95]));
+    }
+
+    #[test]
+    fn a_rig_written_before_gains_were_kept_reads_them_as_1() {
+        let json = r#"{"frames": [19], "cameras": [{"name": "a", "offset_px": [1.0, 2.0], "zoom": 1.01}]}"#;
+        let rig: Rig = serde_json::from_str(json).unwrap();
+        assert_eq!(rig.cameras[0].gain, 1.0);
     }
 
     #[test]

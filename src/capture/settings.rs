@@ -210,6 +210,14 @@ pub struct FitSettings {
     /// On by default: on the settings study's frames it gained 0.0-0.2 dB
     /// on the scoring camera for every model.
     pub gains: bool,
+    /// Hold each training camera's gain at its rig's (the median over the
+    /// rig's calibration frames, their geometric mean 1) instead of fitting
+    /// it on every frame: a camera's exposure does not change during a
+    /// capture, so how its view's brightness differs from frame to frame
+    /// is left to the lights. Needs `gains` and `shared_alignment`; with
+    /// `align` off there is no rig, and every frame fits its gains. Off by
+    /// default.
+    pub rig_gains: bool,
     /// Fit the emission beside the lights in the lit models: an ambient
     /// term, light that reaches every voxel alike and unshadowed. With it,
     /// the lit models contain emission-absorption (their lights all at 0).
@@ -289,6 +297,7 @@ impl Default for FitSettings {
             lights: 0,
             light_radius_deg: 0.0,
             gains: true,
+            rig_gains: false,
             ambient: true,
             gamma: 1.0,
             decoder: 0,
@@ -386,6 +395,9 @@ impl FitSettings {
         if self.lights > 0 && self.light_radius_deg > 0.0 {
             return bad("lights (fitted places) moves point lights: it needs light_radius_deg 0");
         }
+        if self.rig_gains && !(self.gains && self.shared_alignment) {
+            return bad("rig_gains holds the rig's gains: it needs gains and shared_alignment");
+        }
         if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
             return bad("g must be in (-1, 1) and albedo in [0, 1]");
         }
@@ -428,6 +440,19 @@ mod tests {
     }
 
     #[test]
+    fn rig_gains_without_gains_or_a_rig_are_refused() {
+        let rig_gains = FitSettings { rig_gains: true, ..FitSettings::default() };
+        rig_gains.validate().unwrap();
+        for settings in [
+            FitSettings { gains: false, ..rig_gains.clone() },
+            FitSettings { shared_alignment: false, ..rig_gains.clone() },
+        ] {
+            let err = settings.validate().unwrap_err().to_string();
+            assert!(err.contains("rig_gains holds the rig's gains"), "{err}");
+        }
+    }
+
+    #[test]
     fn rig_rounds_outside_1_to_10_are_refused() {
         for rounds in [0, 11] {
             let err = FitSettings { rig_rounds: rounds, ..FitSettings::default() }.validate().unwrap_err().to_string();
@@ -465,6 +490,7 @@ mod tests {
                 n if n.starts_with("albedo_") => settings.albedo.to_string() == n["albedo_".len()..],
                 "gains" => settings.gains,
                 "one_gain" => !settings.gains,
+                "rig_gains" => settings.rig_gains,
                 "log_density" => settings.log_density,
                 "additive" => !settings.log_density,
                 n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],
