@@ -10,7 +10,7 @@ use super::align::geometric_mean;
 use super::lights::{flatten, single_image, step, Gathers};
 use crate::error::Result;
 use crate::image::Image;
-use crate::math::Vec3;
+use crate::math::{frame, Vec3};
 use crate::render::render_photon;
 use crate::scene::{Light, Scene};
 
@@ -54,9 +54,7 @@ fn disc(centre: &Vec3, normal: &Vec3, radius: f64, n: usize) -> Vec<Vec3> {
     if n == 1 {
         return vec![*centre];
     }
-    let helper = if normal.y.abs() > 0.9 { Vec3::new(1.0, 0.0, 0.0) } else { Vec3::new(0.0, 1.0, 0.0) };
-    let a = normal.cross(&helper).normalize();
-    let b = normal.cross(&a);
+    let (a, b) = frame(normal);
     let inner = 1.0 / 7f64.sqrt();
     let ring = radius * (2.0 / 3.0) * (1.0 - inner.powi(3)) / (1.0 - inner.powi(2));
     std::iter::once(*centre)
