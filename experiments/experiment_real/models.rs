@@ -49,11 +49,14 @@ pub struct FitResult {
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub light_share: Option<f64>,
     /// Per training camera (`;`-separated, in the training cameras' order):
-    /// its fitted gain, how far its principal point moved (full-resolution
+    /// its fitted gain, its black level (code values, of 255; 0 unless
+    /// fitted), how far its principal point moved (full-resolution
     /// pixels, right then down, `x/y`), the factor its focal lengths
     /// were scaled by and the angle it was turned by (degrees).
     #[serde(default)]
     pub gains: String,
+    #[serde(default)]
+    pub black_levels_codes: String,
     #[serde(default)]
     pub offsets_px: String,
     #[serde(default)]
@@ -189,6 +192,7 @@ pub fn run(
                 emission: fitted.scene.medium.emission,
                 light_share: fitted.light_share,
                 gains: joined(fitted.gains.iter().map(|g| format!("{g:.4}"))),
+                black_levels_codes: joined(fitted.black_levels.iter().map(|b| format!("{:.2}", 255.0 * b))),
                 offsets_px: joined(fitted.offsets_px().iter().map(|o| format!("{:.1}/{:.1}", o[0], o[1]))),
                 zooms: joined(fitted.zooms.iter().map(|z| format!("{z:.4}"))),
                 rolls_deg: joined(fitted.rolls.iter().map(|r| format!("{:.3}", r.to_degrees()))),

@@ -24,7 +24,9 @@ use super::align::{take_out_shared, warp, Corrections, Free};
 use super::density::{
     cube_around, decoder_start, grid_shape, in_box, start_density, start_shape, upsample, voxel_params, Params,
 };
-use super::lighting::{candidate_lights, disc_points, fit_gains, fit_lights, light_share, place_lights, weights_of};
+use super::lighting::{
+    candidate_lights, disc_points, fit_gains, fit_gains_and_blacks, fit_lights, light_share, place_lights, weights_of,
+};
 use super::observe::{real_silhouette, SILHOUETTE_MARGIN_PX};
 use super::priors::{smoothness, sparsity, total_variation};
 use super::settings::{FitSettings, ImageModel};
@@ -78,8 +80,13 @@ pub struct Fit {
     /// Per training camera, the angle it was turned by about its optical
     /// axis (radians, [`Camera::roll`]; 0 without `roll`).
     pub rolls: Vec<f64>,
-    /// Per training camera, its gain: its photograph is its render times it.
+    /// Per training camera, its gain: its photograph is its render times it
+    /// (plus its black level).
     pub gains: Vec<f64>,
+    /// Per training camera, its black level in code value / full scale
+    /// (through the inverse response curve); 0 without
+    /// [`FitSettings::black_level`].
+    pub black_levels: Vec<f64>,
     /// Per update.
     pub log: Vec<FitRow>,
     /// The lights' share of the training images' light at the end, the
@@ -222,9 +229,11 @@ struct FrameFit<'a> {
     codes: &'a [Image],
     /// The photographs through the inverse response: linear in the lights.
     photographs: Vec<Image>,
-    /// The photographs over their cameras' gains: what the renders are fitted to.
+    /// The photographs less their cameras' black levels, over their gains:
+    /// what the renders are fitted to.
     images: Vec<Image>,
     gains: Vec<f64>,
+    blacks: Vec<f64>,
     /// Whether the gains are a rig's, held ([`FitSettings::rig_gains`]).
     gains_held: bool,
     /// The capture's black threshold in linear units.
@@ -270,7 +279,8 @@ impl<'a> FrameFit<'a> {
         let held = fixed.and_then(|f| f.gains.clone()).filter(|_| settings.rig_gains);
         let gains_held = held.is_some();
         let gains = held.unwrap_or_else(|| vec![1.0; n]);
-        let images = photographs.iter().zip(&gains).map(|(p, g)| p.map(|v| v / g)).collect();
+        let blacks = vec![0.0; n];
+        let images = over_response(&photographs, &gains, &blacks);
         let mut smoothness_axes = [settings.horizontal_smoothness; 3];
         smoothness_axes[up_axis(&cameras)] = 1.0;
         let scene = Scene {
@@ -304,6 +314,7 @@ impl<'a> FrameFit<'a> {
             images,
             photographs,
             gains,
+            blacks,
             gains_held,
             threshold: settings.threshold.powf(settings.gamma),
             offsets,
@@ -419,12 +430,18 @@ impl<'a> FrameFit<'a> {
     /// (censored by the last render), then, with `gains` and if the
     /// settings fit them, the gains. Returns the targets and the unit renders.
     fn refit_lighting(&mut self, gains: bool) -> Result<(Vec<Image>, Vec<Vec<Image>>)> {
-        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
+        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains, &self.blacks);
         let per = disc_points(self.settings.light_radius_deg);
         let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
         if self.settings.gains && gains && !self.gains_held {
-            fit_gains(&mut self.gains, &weights_of(&self.scene, per), &basis, &targets);
-            self.images = self.photographs.iter().zip(&self.gains).map(|(p, g)| p.map(|v| v / g)).collect();
+            let weights = weights_of(&self.scene, per);
+            if self.settings.black_level {
+                let (photographs, threshold) = (&self.photographs, self.threshold);
+                fit_gains_and_blacks(&mut self.gains, &mut self.blacks, &weights, &basis, photographs, threshold);
+            } else {
+                fit_gains(&mut self.gains, &weights, &basis, &targets);
+            }
+            self.images = over_response(&self.photographs, &self.gains, &self.blacks);
         }
         Ok((targets, basis))
     }
@@ -443,7 +460,7 @@ impl<'a> FrameFit<'a> {
         self.scene.render.seed = settings.seed.wrapping_add(self.renders);
         self.renders += 1;
         let frozen = Frozen::new(&self.scene, Some(support));
-        let targets = censored(&self.images, Some(&frozen.images), self.threshold, &self.gains);
+        let targets = censored(&self.images, Some(&frozen.images), self.threshold, &self.gains, &self.blacks);
         let reverse = reverse_gradient(&frozen, &targets, Subset::full());
         self.last = Some(frozen.images.clone());
         let (smooth, smooth_grad) = smoothness(density, hull, settings.smoothness, self.smoothness_axes);
@@ -469,7 +486,7 @@ impl<'a> FrameFit<'a> {
 
     /// The lights and emission fitted once more to the last density: the fit.
     fn finish(mut self) -> Result<Fit> {
-        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains);
+        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains, &self.blacks);
         let per = disc_points(self.settings.light_radius_deg);
         let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
         let model = self.settings.model;
@@ -481,6 +498,7 @@ impl<'a> FrameFit<'a> {
             zooms: self.zooms,
             rolls: self.rolls,
             gains: self.gains,
+            black_levels: self.blacks,
             log: self.log,
             light_share,
             seconds: self.start.elapsed().as_secs_f64(),
@@ -528,34 +546,48 @@ fn align_cameras(cameras: &mut [Camera], totals: Moves, free: Free, rendered: &[
 /// `targets` where the capture's threshold hides nothing, and `rendered`
 /// itself (no error) where a target is 0 and the render is below the
 /// threshold: there the photograph cannot tell the render is wrong.
-/// `threshold` is in linear units of a camera of gain 1; a camera's render
-/// meets it at `threshold / gain`. Without a render (none yet), `targets`
-/// as they are.
-fn censored(targets: &[Image], rendered: Option<&[Image]>, threshold: f64, gains: &[f64]) -> Vec<Image> {
+/// `threshold` is in linear units of the photographs; a camera's render
+/// `r` meets it where `gain r + black` does. Without a render (none yet),
+/// `targets` as they are.
+fn censored(
+    targets: &[Image],
+    rendered: Option<&[Image]>,
+    threshold: f64,
+    gains: &[f64],
+    blacks: &[f64],
+) -> Vec<Image> {
     let Some(rendered) = rendered else { return targets.to_vec() };
     targets
         .iter()
         .zip(rendered)
-        .zip(gains)
-        .map(|((t, r), gain)| Image {
+        .zip(gains.iter().zip(blacks))
+        .map(|((t, r), (gain, black))| Image {
             width: t.width,
             height: t.height,
             data: t
                 .data
                 .iter()
                 .zip(&r.data)
-                .map(|(&t, &r)| if t == 0.0 && r * gain < threshold { r } else { t })
+                .map(|(&t, &r)| if t == 0.0 && r * gain + black < threshold { r } else { t })
                 .collect(),
         })
         .collect()
 }
 
-/// A rendered view through a camera of `gain` and the response of
-/// `settings`: the gain, the curve ([`FitSettings::gamma`]), then the
-/// capture's processing (0 below its threshold), in code value / full scale.
-pub fn respond(image: &Image, gain: f64, settings: &FitSettings) -> Image {
+/// `photographs` (linear) less each camera's black level where they are
+/// not 0 (the threshold hid the rest), over its gain.
+fn over_response(photographs: &[Image], gains: &[f64], blacks: &[f64]) -> Vec<Image> {
+    let cameras = photographs.iter().zip(gains.iter().zip(blacks));
+    cameras.map(|(p, (g, b))| p.map(|v| if v > 0.0 { (v - b) / g } else { 0.0 })).collect()
+}
+
+/// A rendered view through a camera of `gain` and `black` level and the
+/// response of `settings`: the gain and black level, the curve
+/// ([`FitSettings::gamma`]), then the capture's processing (0 below its
+/// threshold), in code value / full scale.
+pub fn respond(image: &Image, gain: f64, black: f64, settings: &FitSettings) -> Image {
     image.map(|v| {
-        let code = (gain * v).max(0.0).powf(1.0 / settings.gamma);
+        let code = (gain * v + black).max(0.0).powf(1.0 / settings.gamma);
         if code < settings.threshold {
             0.0
         } else {
@@ -568,7 +600,8 @@ pub fn respond(image: &Image, gain: f64, settings: &FitSettings) -> Image {
 /// resolution, through their gains and the response.
 pub fn training_views(fit: &Fit) -> Vec<Image> {
     let rendered = render_photon(&fit.scene).images;
-    rendered.iter().zip(&fit.gains).map(|(image, &gain)| respond(image, gain, &fit.settings)).collect()
+    let responses = fit.gains.iter().zip(&fit.black_levels);
+    rendered.iter().zip(responses).map(|(image, (&gain, &black))| respond(image, gain, black, &fit.settings)).collect()
 }
 
 /// Root mean square difference, in code value / full scale, between the
@@ -596,7 +629,13 @@ pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
     }
     scene.render.spp = VIEW_SPP;
     scene.render.seed = fit.settings.seed.wrapping_add(u64::MAX / 2);
-    respond(&render_photon(&scene).images[0], 1.0, &fit.settings)
+    respond(&render_photon(&scene).images[0], 1.0, held_out_black(fit), &fit.settings)
+}
+
+/// A held-out camera's black level: the training cameras' mean, by the
+/// rule fixed in advance ([`FitSettings::black_level`]); 0 without it.
+pub fn held_out_black(fit: &Fit) -> f64 {
+    fit.black_levels.iter().sum::<f64>() / fit.black_levels.len().max(1) as f64
 }
 
 /// The grid axis (z, y, x: 0, 1, 2, as a grid's shape) nearest the
@@ -854,12 +893,20 @@ mod tests {
         let photo = Image { width: 4, height: 1, data: vec![0.0, 5.0 / 255.0, 0.1, 0.9] };
         let gain = 1.3;
         let linear = photo.map(|v| v.powf(settings.gamma) / gain);
-        let back = respond(&linear, gain, &settings);
+        let back = respond(&linear, gain, 0.0, &settings);
         assert_eq!(back.data[..2], [0.0, 0.0]);
         for (b, p) in back.data[2..].iter().zip(&photo.data[2..]) {
             assert!((b - p).abs() < 1e-12, "{back:?}");
         }
-        let raw = respond(&linear, gain, &FitSettings::default());
+        let raw = respond(&linear, gain, 0.0, &FitSettings::default());
         assert!((raw.data[3] - 0.9f64.powf(2.2)).abs() < 1e-12, "gamma 1 must pass radiance through: {raw:?}");
+        // With a black level, through what the fit works on and back.
+        let black = 0.0003; // below the threshold in linear units, (8 / 255)^2.2
+        let linear = &over_response(&[photo.map(|v| v.powf(settings.gamma))], &[gain], &[black])[0];
+        let back = respond(linear, gain, black, &settings);
+        assert_eq!(back.data[..2], [0.0, 0.0]);
+        for (b, p) in back.data[2..].iter().zip(&photo.data[2..]) {
+            assert!((b - p).abs() < 1e-12, "{back:?}");
+        }
     }
 }

@@ -176,6 +176,51 @@ pub(super) fn fit_gains(gains: &mut [f64], weights: &[f64], basis: &[Vec<Image>]
     gains.iter_mut().zip(&fitted).for_each(|(g, f)| *g = f / mean);
 }
 
+/// A gain and a black level per camera: the least-squares line `gain r +
+/// black` of its photograph `p` (linear, not over its gain) on its render
+/// `r` (`basis` weighted by `weights`) over the pixels the capture's
+/// threshold does not hide (those where `p` > 0 or the line reaches
+/// `threshold`), the black level within `threshold` either way (beyond it
+/// the processing would have shown or hidden the whole background); the
+/// gains then divided by their geometric mean, which the lights absorb.
+pub(super) fn fit_gains_and_blacks(
+    gains: &mut [f64],
+    blacks: &mut [f64],
+    weights: &[f64],
+    basis: &[Vec<Image>],
+    photographs: &[Image],
+    threshold: f64,
+) {
+    let fitted: Vec<f64> = (0..gains.len())
+        .map(|c| {
+            let render = weighted(basis, weights, c);
+            let seen: Vec<(f64, f64)> = render
+                .iter()
+                .zip(&photographs[c].data)
+                .filter(|&(&r, &p)| p > 0.0 || gains[c] * r + blacks[c] >= threshold)
+                .map(|(&r, &p)| (r, p))
+                .collect();
+            let n = seen.len() as f64;
+            let (sr, sp) = seen.iter().fold((0.0, 0.0), |(a, b), (r, p)| (a + r, b + p));
+            let (srr, srp) = seen.iter().fold((0.0, 0.0), |(a, b), (r, p)| (a + r * r, b + r * p));
+            let det = n * srr - sr * sr;
+            if !det.is_finite() || det <= 0.0 {
+                return gains[c];
+            }
+            let black = ((srr * sp - sr * srp) / det).clamp(-threshold, threshold);
+            let gain = (srp - black * sr) / srr;
+            if gain > 0.0 && gain.is_finite() {
+                blacks[c] = black;
+                gain
+            } else {
+                gains[c]
+            }
+        })
+        .collect();
+    let mean = geometric_mean(&fitted);
+    gains.iter_mut().zip(&fitted).for_each(|(g, f)| *g = f / mean);
+}
+
 /// Keeps the `keep` lights of `scene` that add most to the images (by
 /// `basis`, their renders at unit intensity), then moves them by one
 /// Levenberg-Marquardt step ([`super::lights`]) with `damping`, tried
@@ -335,6 +380,31 @@ mod tests {
         fit_gains(&mut gains, &weights, &basis, &photographs);
         let mean = (0.96f64).sqrt();
         assert!((gains[0] - 1.2 / mean).abs() < 1e-12 && (gains[1] - 0.8 / mean).abs() < 1e-12, "{gains:?}");
+    }
+
+    /// Photographs that are their renders times 1.2 and 0.8 plus 0.01 and
+    /// minus 0.01, 0 where that falls below the threshold 0.03 (as the
+    /// capture's processing sets them), give those gains' ratio and black
+    /// levels; an offset beyond the threshold is held at it.
+    #[test]
+    fn a_black_level_is_fitted_beside_each_gain() {
+        let im = |v: Vec<f64>| Image { width: v.len(), height: 1, data: v };
+        let render = [vec![0.0, 0.01, 0.05, 0.1, 0.2, 0.4], vec![0.0, 0.02, 0.04, 0.08, 0.3, 0.5]];
+        let basis = vec![render.iter().map(|r| im(r.clone())).collect::<Vec<_>>()];
+        let process = |r: &[f64], gain: f64, black: f64| {
+            im(r.iter().map(|v| if gain * v + black < 0.03 { 0.0 } else { gain * v + black }).collect())
+        };
+        let photographs = vec![process(&render[0], 1.2, 0.01), process(&render[1], 0.8, -0.01)];
+        let (mut gains, mut blacks) = (vec![1.0; 2], vec![0.0; 2]);
+        for _ in 0..3 {
+            fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03);
+        }
+        assert!((gains[0] / gains[1] - 1.5).abs() < 1e-9, "{gains:?}");
+        assert!((blacks[0] - 0.01).abs() < 1e-9 && (blacks[1] + 0.01).abs() < 1e-9, "{blacks:?}");
+        let photographs = vec![process(&render[0], 1.0, 0.1), process(&render[1], 1.0, 0.1)];
+        let (mut gains, mut blacks) = (vec![1.0; 2], vec![0.0; 2]);
+        fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03);
+        assert_eq!(blacks, vec![0.03; 2]);
     }
 
     /// A lopsided ball of smoke seen by three cameras, lit by `lights`

@@ -8,7 +8,7 @@
 //! `manifest.json`.
 
 use super::calibration;
-use super::fit::{training_views, FitRow};
+use super::fit::{held_out_black, training_views, FitRow};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
 use super::rig::Rig;
 use super::settings::FitSettings;
@@ -34,9 +34,13 @@ struct Quality {
     psnr_db: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     rel_rmse: Option<f64>,
-    /// The camera's fitted gain (a held-out camera's by the fit's rule: 1).
+    /// The camera's fitted gain (a held-out camera's by the fit's rule: 1)
+    /// and black level in code values of 255 (a held-out camera's by the
+    /// fit's rule: the training cameras' mean; 0 unless fitted).
     #[serde(serialize_with = "fmt::f4")]
     gain: f64,
+    #[serde(serialize_with = "fmt::f2")]
+    black_level_codes: f64,
     /// How far the fit moved the camera's principal point (full-resolution
     /// pixels, right and down) and the factor it scaled its focal lengths
     /// by, and the angle it was turned by about its optical axis (degrees);
@@ -155,8 +159,8 @@ fn write(
     let views = training_views(&result.fit);
     let fit = &result.fit;
     let offsets = fit.offsets_px();
-    let moves = fit.gains.iter().zip(&offsets).zip(fit.zooms.iter().zip(&fit.rolls));
-    for (((&v, image), target), ((&gain, offset), (&zoom, &roll))) in
+    let moves = fit.gains.iter().zip(&fit.black_levels).zip(&offsets).zip(fit.zooms.iter().zip(&fit.rolls));
+    for (((&v, image), target), (((&gain, &black), offset), (&zoom, &roll))) in
         roles.training.iter().zip(&views).zip(targets).zip(moves)
     {
         let score = super::protocol::Score::of(image, target);
@@ -169,6 +173,7 @@ fn write(
             psnr_db: score.psnr,
             rel_rmse: score.rel_rmse,
             gain,
+            black_level_codes: 255.0 * black,
             offset_x_px: offset[0],
             offset_y_px: offset[1],
             zoom,
@@ -197,6 +202,7 @@ fn write(
             psnr_db: held.score.psnr,
             rel_rmse: held.score.rel_rmse,
             gain: 1.0,
+            black_level_codes: 255.0 * held_out_black(fit),
             offset_x_px: 0.0,
             offset_y_px: 0.0,
             zoom: 1.0,

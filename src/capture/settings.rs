@@ -223,6 +223,14 @@ pub struct FitSettings {
     /// and multiple scattering lost 0.17 dB on the scoring camera (0.49 dB
     /// on that frame), emission-absorption 0.05.
     pub rig_gains: bool,
+    /// Fit a black level per training camera beside its gain: its
+    /// photograph is its render times the gain plus the black level (in
+    /// code value / full scale, within the capture's threshold either way),
+    /// an offset the capture's processing (background subtraction,
+    /// rescaling) may have left. A held-out camera's black level is the
+    /// training cameras' mean, by this rule fixed in advance. Needs `gains`;
+    /// not with `rig_gains`. Off by default.
+    pub black_level: bool,
     /// Fit the emission beside the lights in the lit models: an ambient
     /// term, light that reaches every voxel alike and unshadowed. With it,
     /// the lit models contain emission-absorption (their lights all at 0).
@@ -303,6 +311,7 @@ impl Default for FitSettings {
             light_radius_deg: 0.0,
             gains: true,
             rig_gains: false,
+            black_level: false,
             ambient: true,
             gamma: 1.0,
             decoder: 0,
@@ -403,6 +412,9 @@ impl FitSettings {
         if self.rig_gains && !(self.gains && self.shared_alignment) {
             return bad("rig_gains holds the rig's gains: it needs gains and shared_alignment");
         }
+        if self.black_level && (!self.gains || self.rig_gains) {
+            return bad("black_level is fitted with each camera's gain: it needs gains, and not rig_gains");
+        }
         if !(self.g.abs() < 1.0 && (0.0..=1.0).contains(&self.albedo)) {
             return bad("g must be in (-1, 1) and albedo in [0, 1]");
         }
@@ -458,6 +470,16 @@ mod tests {
     }
 
     #[test]
+    fn a_black_level_without_gains_or_with_the_rigs_is_refused() {
+        let black = FitSettings { black_level: true, ..FitSettings::default() };
+        black.validate().unwrap();
+        for settings in [FitSettings { gains: false, ..black.clone() }, FitSettings { rig_gains: true, ..black }] {
+            let err = settings.validate().unwrap_err().to_string();
+            assert!(err.contains("black_level is fitted with each camera's gain"), "{err}");
+        }
+    }
+
+    #[test]
     fn rig_rounds_outside_1_to_10_are_refused() {
         for rounds in [0, 11] {
             let err = FitSettings { rig_rounds: rounds, ..FitSettings::default() }.validate().unwrap_err().to_string();
@@ -496,6 +518,7 @@ mod tests {
                 "gains" => settings.gains,
                 "one_gain" => !settings.gains,
                 "rig_gains" => settings.rig_gains,
+                "black_level" => settings.black_level,
                 "log_density" => settings.log_density,
                 "additive" => !settings.log_density,
                 n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],

@@ -43,6 +43,8 @@ pub mod fmt {
         f6 "{:.6}",
         /// Fixed, 4 decimals.
         f4 "{:.4}",
+        /// Fixed, 2 decimals.
+        f2 "{:.2}",
         /// Fixed, 1 decimal.
         f1 "{:.1}"
     );
