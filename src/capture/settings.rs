@@ -229,7 +229,9 @@ pub struct FitSettings {
     /// an offset the capture's processing (background subtraction,
     /// rescaling) may have left. A held-out camera's black level is the
     /// training cameras' mean, by this rule fixed in advance. Needs `gains`;
-    /// not with `rig_gains`. Off by default.
+    /// not with `rig_gains`. Off by default: on the settings study's frames
+    /// the offsets came out at -1 to -8 codes and lowered the training
+    /// error 4 %, and the scoring camera moved by 0.01 dB.
     pub black_level: bool,
     /// Fit the emission beside the lights in the lit models: an ambient
     /// term, light that reaches every voxel alike and unshadowed. With it,
