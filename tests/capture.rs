@@ -514,6 +514,41 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     assert!((tried[0]..=tried[tried.len() - 1]).contains(&column("oracle_magnification")), "{quality}");
     // Against the same photograph a smaller error is a smaller relative RMSE.
     assert!(column("rel_rmse_oracle_aligned") <= column("rel_rmse"), "{quality}");
+
+    // The folder's rig taken by a later fit: not fitted again, and the fit
+    // the same to the bit as with the rig fitted there.
+    let again = dir.join("again");
+    let with_rig = |study: &Path, rig: &Path| {
+        std::process::Command::new(exe)
+            .args(["fit", "--capture"])
+            .arg(dir.join("info.json"))
+            .args(["--frame", "1", "--study"])
+            .arg(study)
+            .arg("--rig")
+            .arg(rig)
+            .arg("--out")
+            .arg(&again)
+            .output()
+            .unwrap()
+    };
+    let other = dir.join("orders.json");
+    std::fs::write(&other, r#"{"rig_lit_share": null, "orders": 4}"#).unwrap();
+    for (study, rig, says) in [
+        (&other, &out, "other fit setting orders (3 in its settings.json, 4 here)"),
+        (&no_probe, &dir, "settings.json: not found"),
+    ] {
+        let bad = with_rig(study, rig);
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(!bad.status.success() && err.contains("--rig: ") && err.contains(says), "{err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(!again.exists(), "a refused rig is refused before any output");
+    }
+    let reused = with_rig(&no_probe, &out);
+    let err = String::from_utf8_lossy(&reused.stderr);
+    assert!(reused.status.success() && !err.contains("aligned the training cameras"), "{err}");
+    for file in ["density.npy", "held_out.npy", "rig.json", "settings.json"] {
+        assert_eq!(std::fs::read(again.join(file)).unwrap(), std::fs::read(out.join(file)).unwrap(), "{file}");
+    }
 }
 
 #[test]

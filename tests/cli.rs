@@ -490,8 +490,8 @@ fn the_option_surface_is_small() {
         (n, help)
     };
     let (fit, help) = options(env!("CARGO_BIN_EXE_dualphoton"), &["fit"]);
-    // 14 for images you rendered, plus --capture, --frame, --box and --focal-lengths for a real capture.
-    assert!(fit <= 18 && help.lines().count() <= 27, "fit: {fit} options\n{help}");
+    // 14 for images you rendered, plus --capture, --frame, --box, --focal-lengths and --rig for a real capture.
+    assert!(fit <= 19 && help.lines().count() <= 28, "fit: {fit} options\n{help}");
     // The library's defaults, computed, not copied.
     assert!(help.contains("[default: 250 (paper's method), 60 (learned prior)]"), "{help}");
     let (table1, help) = options(env!("CARGO_BIN_EXE_experiment_table1"), &[]);

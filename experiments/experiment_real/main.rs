@@ -16,10 +16,10 @@
 
 mod figures;
 mod models;
-mod resume;
 
 use clap::Parser;
 use dualphoton::capture::frame::{self, CameraChoice};
+use dualphoton::capture::reuse;
 use dualphoton::capture::scalarflow_cameras::held_out_zoom;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::{calibration, frames, protocol::Protocol, Capture};
@@ -90,7 +90,7 @@ fn run(args: Args) -> Result<()> {
     frame::check(&capture, &roles, &args.frames, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
-    resume::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
+    reuse::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
     let truth = frames::read(test, &args.frames)?;

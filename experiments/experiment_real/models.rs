@@ -5,11 +5,11 @@
 //! The figure frames' panels go to `views/` as their fits finish.
 
 use crate::figures::{self, FIGURE_FRAMES};
-use crate::resume;
 use dualphoton::capture::fit::training_rmse;
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::protocol::{ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
+use dualphoton::capture::reuse;
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
@@ -155,7 +155,7 @@ pub fn run(
         rows.iter().any(|r| r.frame == frame && r.model == model.name())
     };
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
-    let rig = resume::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
+    let rig = reuse::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
     for images in read(capture, roles, &todo, base.factor)? {
         let frame = images.frame;
         let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;

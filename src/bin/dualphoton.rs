@@ -184,6 +184,11 @@ struct FitArgs {
     /// the focal length of its vertical field of view instead of the calibration's horizontal one.
     #[arg(long, requires = "capture")]
     focal_lengths: Option<PathBuf>,
+    /// The OUT of an earlier fit of --capture (or experiment_real's folder): its rig.json, the training
+    /// cameras' alignment, is taken instead of fitted again (about half of a frame's time). Refused
+    /// unless it was made with the same cameras and settings.
+    #[arg(long, requires = "capture", value_name = "DIR")]
+    rig: Option<PathBuf>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -339,6 +344,7 @@ fn fit(a: FitArgs) -> Result<()> {
             smoke_box,
             frame,
             &settings,
+            a.rig.as_deref(),
             &a.out,
         );
     }

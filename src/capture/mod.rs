@@ -18,7 +18,8 @@
 //! - [`priors`] are what the fit asks of a density beside the images;
 //!   [`learned_filter`] is a linear filter from a fitted density to the
 //!   true one, learned on made captures.
-//! - [`rig`] aligns the training cameras once for every frame of a capture.
+//! - [`rig`] aligns the training cameras once for every frame of a capture;
+//!   [`reuse`] says when a later run may take a rig or fits an earlier one made.
 //! - [`temporal`] brings neighbouring frames' densities onto one frame's.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
@@ -37,6 +38,7 @@ pub mod observe;
 pub mod outputs;
 pub mod priors;
 pub mod protocol;
+pub mod reuse;
 pub mod rig;
 pub mod scalarflow_cameras;
 pub mod settings;

@@ -4,12 +4,16 @@
 //! resolution: a scene `dualphoton render` takes), `log.csv` (per update),
 //! `fit_quality.csv` (per camera), `held_out.npy` and `held_out.png` (the
 //! held-out camera at the capture's resolution, code value / 255 after the
-//! fitted response; with several held-out cameras, `held_out_NAME.*`) and
+//! fitted response; with several held-out cameras, `held_out_NAME.*`),
+//! `rig.json` and `settings.json` (the training cameras' alignment, where
+//! the settings align them once for every frame, and what it was made
+//! with: a later frame's fit takes the folder as `--rig`) and
 //! `manifest.json`.
 
 use super::calibration;
 use super::fit::{held_out_black, training_views, FitRow};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
+use super::reuse::{self, RunSettings};
 use super::rig::Rig;
 use super::settings::FitSettings;
 use super::Capture;
@@ -91,13 +95,16 @@ struct Settings<'a> {
 /// Fits frame `frame` of the capture at `calibration_path` (a file or the
 /// folder holding it), with the focal lengths of ScalarFlow's camera file
 /// `focal_lengths` and the density on `smoke_box` if given (else the
-/// calibration's), and writes everything into `out`.
+/// calibration's), and writes everything into `out`. The training cameras'
+/// alignment is the rig an earlier run wrote into `earlier` if given (made
+/// with the same cameras and settings), else fitted here.
 pub fn fit_and_write(
     calibration_path: &Path,
     focal_lengths: Option<&Path>,
     smoke_box: Option<(Vec3, Vec3)>,
     frame: usize,
     settings: &FitSettings,
+    earlier: Option<&Path>,
     out: &Path,
 ) -> Result<()> {
     let mut capture = calibration::open(calibration_path, focal_lengths)?;
@@ -107,11 +114,23 @@ pub fn fit_and_write(
     }
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
+    let record = RunSettings::of(&capture, &roles, settings)?;
+    let earlier_rig = earlier
+        .map(|dir| reuse::earlier_rig(dir, &record, &capture, &roles, settings))
+        .transpose()
+        .map_err(|e| Error(format!("--rig: {e}")))?;
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
+    let rig = match earlier_rig {
+        Some(rig) => Some(rig),
+        None => Rig::if_shared(&capture, &roles.training, settings, &mut |f, fit| {
+            eprintln!("aligned the training cameras on frame {f} under {}", fit.settings.model.name())
+        })?,
+    };
+    if let Some(rig) = &rig {
+        record.write(out)?;
+        reuse::write_rig(&run.path("rig.json"), rig)?;
+    }
     eprintln!("reading frame {frame} of {} cameras ...", roles.training.len() + roles.held_out.len());
-    let rig = Rig::if_shared(&capture, &roles.training, settings, &mut |f, fit| {
-        eprintln!("aligned the training cameras on frame {f} under {}", fit.settings.model.name())
-    })?;
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
     let mut log: Vec<FitRow> = Vec::new();
     let result = fit_frame(&capture, &roles, &images, settings, rig.as_ref(), &mut |row| {

@@ -1,15 +1,15 @@
-//! What a rerun may reuse of a run before it: the rows of `fits.csv` and
-//! the rig, only where they were made with this run's cameras and
-//! settings. The record of them is `settings.json`, written before the
-//! first fit.
+//! What a run may reuse of a run before it: the rows of a table of fits
+//! and the rig (the training cameras' alignment), only where they were made
+//! with this run's cameras and settings. The record of them is
+//! `settings.json`, written beside them before the first fit.
 
-use dualphoton::capture::frame::Roles;
-use dualphoton::capture::rig::{calibration_frames, Rig};
-use dualphoton::capture::settings::FitSettings;
-use dualphoton::capture::Capture;
-use dualphoton::error::{Error, Result};
-use dualphoton::io::manifest::write_json;
-use dualphoton::math::Vec3;
+use super::frame::Roles;
+use super::rig::{calibration_frames, Rig};
+use super::settings::FitSettings;
+use super::Capture;
+use crate::error::{Error, Result};
+use crate::io::manifest::write_json;
+use crate::math::Vec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -44,6 +44,7 @@ struct CameraRecord {
 }
 
 impl RunSettings {
+    /// The record of a run fitting `roles` of `capture` with `base`.
     pub fn of(capture: &Capture, roles: &Roles, base: &FitSettings) -> Result<RunSettings> {
         let record = |v: usize| {
             let (view, cam) = (&capture.views[v], &capture.views[v].camera);
@@ -78,12 +79,9 @@ impl RunSettings {
     pub fn record(&self, dir: &Path, fits: bool) -> Result<()> {
         let path = dir.join("settings.json");
         let refuse = |why: String| Err(start_afresh(dir, &why));
-        let json = |e: serde_json::Error| Error(format!("{}: {e}", path.display()));
-        // Compared as written and read back, so that a value's last bit lost to the text never differs.
-        let mine: serde_json::Value =
-            serde_json::from_str(&serde_json::to_string(self).map_err(json)?).map_err(json)?;
+        let mine = self.value()?;
         if path.exists() {
-            let theirs: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path)?).map_err(json)?;
+            let theirs = read_json(&path)?;
             return match differences(&mine, &theirs, fits).as_slice() {
                 [] => Ok(()),
                 what => refuse(format!("holds a run made with other {}", what.join(", "))),
@@ -97,6 +95,24 @@ impl RunSettings {
         }
         write_json(&path, &mine)
     }
+
+    /// Writes the record into `dir/settings.json`, replacing any there: a
+    /// folder one frame's fit rewrites whole.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        write_json(&dir.join("settings.json"), &self.value()?)
+    }
+
+    /// The record as written and read back, so that a value's last bit lost
+    /// to the text never differs.
+    fn value(&self) -> Result<serde_json::Value> {
+        let text = serde_json::to_string(self).map_err(|e| Error(e.to_string()))?;
+        serde_json::from_str(&text).map_err(|e| Error(e.to_string()))
+    }
+}
+
+fn read_json(path: &Path) -> Result<serde_json::Value> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+    serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))
 }
 
 /// The one-line refusal of a folder (or a file in it) that holds another
@@ -145,22 +161,59 @@ fn differences(mine: &serde_json::Value, theirs: &serde_json::Value, fits: bool)
 /// the training cameras and written there.
 pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) -> Result<Option<Rig>> {
     if path.exists() && base.aligns_once() {
-        let text = std::fs::read_to_string(path)?;
-        let rig: Rig = serde_json::from_str(&text).map_err(|e| Error(format!("{}: {e}", path.display())))?;
-        let names: Vec<&str> = roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect();
-        let frames = calibration_frames(capture.frame_count(), base.rig_frames);
-        if rig.cameras.iter().map(|c| c.name.as_str()).ne(names.iter().copied()) || rig.frames != frames {
-            let why =
-                format!("aligns other cameras or frames than this run's ({} on frames {frames:?})", names.join(", "));
-            return Err(start_afresh(path, &why));
-        }
-        return Ok(Some(rig));
+        return read_rig(path, capture, roles, base).map(Some).map_err(|why| start_afresh(path, &why));
     }
     let rig = Rig::if_shared(capture, &roles.training, base, &mut |frame, fit| {
         eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
     })?;
     if let Some(rig) = &rig {
-        write_json(path, &serde_json::to_value(rig).map_err(|e| Error(e.to_string()))?)?;
+        write_rig(path, rig)?;
+    }
+    Ok(rig)
+}
+
+/// Writes `rig` as JSON into `path`.
+pub fn write_rig(path: &Path, rig: &Rig) -> Result<()> {
+    write_json(path, &serde_json::to_value(rig).map_err(|e| Error(e.to_string()))?)
+}
+
+/// The rig an earlier run wrote into `dir` (its `rig.json`, beside the
+/// `settings.json` that records what it was made with), for a run that
+/// `record` describes: refused unless that run had the same cameras and fit
+/// settings (its image model aside: one rig serves every model).
+pub fn earlier_rig(
+    dir: &Path,
+    record: &RunSettings,
+    capture: &Capture,
+    roles: &Roles,
+    base: &FitSettings,
+) -> Result<Rig> {
+    if !base.aligns_once() {
+        return Err(Error("these fit settings align the cameras on each frame: there is no rig to reuse".into()));
+    }
+    let (settings, rig) = (dir.join("settings.json"), dir.join("rig.json"));
+    if let Some(missing) = [&settings, &rig].into_iter().find(|f| !f.exists()) {
+        let why = "not found: give the folder of an earlier `fit --capture` or experiment_real";
+        return Err(Error(format!("{}: {why}", missing.display())));
+    }
+    match differences(&record.value()?, &read_json(&settings)?, true).as_slice() {
+        [] => read_rig(&rig, capture, roles, base).map_err(|why| Error(format!("{}: {why}", rig.display()))),
+        what => Err(Error(format!("{}: made with other {}", dir.display(), what.join(", ")))),
+    }
+}
+
+/// The rig in `path`, if it aligns the training cameras of `roles` on the
+/// calibration frames `base` asks for; else why not.
+fn read_rig(path: &Path, capture: &Capture, roles: &Roles, base: &FitSettings) -> std::result::Result<Rig, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    let rig: Rig = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    let names: Vec<&str> = roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect();
+    let frames = calibration_frames(capture.frame_count(), base.rig_frames);
+    if rig.cameras.iter().map(|c| c.name.as_str()).ne(names.iter().copied()) || rig.frames != frames {
+        return Err(format!(
+            "aligns other cameras or frames than this run's ({} on frames {frames:?})",
+            names.join(", ")
+        ));
     }
     Ok(rig)
 }
