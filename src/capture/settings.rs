@@ -202,7 +202,7 @@ pub struct FitSettings {
     /// are, whose shadows are soft ([`super::lighting::candidate_lights`]).
     /// 0: points, by default: on the settings study's frames discs of 15
     /// degrees scored as points (within 0.01 dB on the scoring camera,
-    /// with per-camera gains or one gain) at 2.1-3.4 times the fit's time.
+    /// with per-camera gains or one gain) at about 2-4 times the fit's time.
     pub light_radius_deg: f64,
     /// Fit a gain per training camera (the cameras' brightest smoke differs
     /// by up to about a third between them): the photographs are divided by
