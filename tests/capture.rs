@@ -533,9 +533,12 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     };
     let other = dir.join("orders.json");
     std::fs::write(&other, r#"{"rig_lit_share": null, "orders": 4}"#).unwrap();
+    let per_frame = dir.join("per_frame.json");
+    std::fs::write(&per_frame, r#"{"shared_alignment": false}"#).unwrap();
     for (study, rig, says) in [
         (&other, &out, "other fit setting orders (3 in its settings.json, 4 here)"),
         (&no_probe, &dir, "settings.json: not found"),
+        (&per_frame, &out, "no rig to reuse"),
     ] {
         let bad = with_rig(study, rig);
         let err = String::from_utf8_lossy(&bad.stderr);

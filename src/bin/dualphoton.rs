@@ -185,8 +185,8 @@ struct FitArgs {
     #[arg(long, requires = "capture")]
     focal_lengths: Option<PathBuf>,
     /// The OUT of an earlier fit of --capture (or experiment_real's folder): its rig.json, the training
-    /// cameras' alignment, is taken instead of fitted again (about half of a frame's time). Refused
-    /// unless it was made with the same cameras and settings.
+    /// cameras' alignment, is taken instead of fitted again (most of one frame's time). Refused unless
+    /// it was made with the same cameras and settings.
     #[arg(long, requires = "capture", value_name = "DIR")]
     rig: Option<PathBuf>,
     /// Output directory.

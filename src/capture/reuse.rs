@@ -102,8 +102,8 @@ impl RunSettings {
         write_json(&dir.join("settings.json"), &self.value()?)
     }
 
-    /// The record as written and read back, so that a value's last bit lost
-    /// to the text never differs.
+    /// The record as `settings.json` holds it (written and read back), so
+    /// that it compares equal to the file it wrote.
     fn value(&self) -> Result<serde_json::Value> {
         let text = serde_json::to_string(self).map_err(|e| Error(e.to_string()))?;
         serde_json::from_str(&text).map_err(|e| Error(e.to_string()))
