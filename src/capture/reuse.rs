@@ -22,8 +22,8 @@ pub struct RunSettings {
     /// The training cameras, in their order, at the capture's resolution
     /// (with `--focal-lengths`, its focal lengths).
     training: Vec<CameraRecord>,
-    /// The held-out camera.
-    held_out: CameraRecord,
+    /// The held-out camera, if the capture has one.
+    held_out: Option<CameraRecord>,
     /// The calibration's smoke box, lower and upper corner, if it has one.
     smoke_box: Option<[[f64; 3]; 2]>,
     /// The fit settings, `model` left out (each row names its own).
@@ -65,7 +65,7 @@ impl RunSettings {
         }
         Ok(RunSettings {
             training: roles.training.iter().map(|&v| record(v)).collect(),
-            held_out: record(roles.held_out[0]),
+            held_out: roles.held_out.first().map(|&v| record(v)),
             smoke_box: capture.smoke_box.map(|(lo, hi)| [[lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]]),
             fit,
         })
