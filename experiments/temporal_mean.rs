@@ -18,13 +18,13 @@
 use clap::Parser;
 use dualphoton::capture::fit::{fit, fit_from, fit_lighting, training_rmse, Fit};
 use dualphoton::capture::frame::{check, held_out_view, read, CameraChoice, FrameImages, Roles};
+use dualphoton::capture::reuse;
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::temporal::{mean_onto, Shift};
 use dualphoton::capture::{calibration, Capture};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
-use dualphoton::io::manifest::write_json;
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
 use dualphoton::volume::Grid;
 use serde::Serialize;
@@ -108,7 +108,7 @@ fn run(args: Args) -> Result<()> {
         eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
     })?;
     if let Some(rig) = &rig {
-        write_json(&run.path("rig.json"), &serde_json::to_value(rig).map_err(|e| Error(e.to_string()))?)?;
+        reuse::write_rig(&run.path("rig.json"), rig)?;
     }
     let fixed = rig.as_ref().map(Rig::corrections);
     let smoke_box = capture.grid_box()?;
