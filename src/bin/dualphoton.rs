@@ -484,16 +484,8 @@ fn choose_prior(choice: Option<&str>, shape: [usize; 3]) -> Result<Option<Prior>
             p
         }
         None => {
-            let here = PathBuf::from(prior::DEFAULT_DIR);
-            let built = Path::new(env!("CARGO_MANIFEST_DIR")).join(prior::DEFAULT_DIR);
-            let Some(dir) = [here, built.clone()].into_iter().find(|d| d.join("prior.json").exists()) else {
-                return Err(Error(format!(
-                    "--prior: the default prior {} is in neither ./{} nor {}: pass --prior DIR or --prior none",
-                    prior::DEFAULT_DIR,
-                    prior::DEFAULT_DIR,
-                    built.display()
-                )));
-            };
+            let dir = prior::default_dir()
+                .map_err(|e| Error(format!("--prior: {}: pass --prior DIR or --prior none", e.0)))?;
             let p = Prior::load(&dir)?;
             if let Err(e) = p.check_grid(shape) {
                 eprintln!("fit: the paper's per-scene decoder, not the default prior ({e})");

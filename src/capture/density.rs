@@ -10,6 +10,7 @@ use crate::image::Image;
 use crate::math::Vec3;
 use crate::model::{Decoder, Model};
 use crate::optim::Adam;
+use crate::prior::Prior;
 use crate::recon::train::TrainSettings;
 use crate::scene::Camera;
 use crate::volume::Grid;
@@ -21,8 +22,11 @@ pub(super) enum Params {
     Density(Adam),
     /// The density's logarithm inside the hull.
     Log(Adam, Vec<f64>),
-    /// The paper's model: the density is `scale` times the decoder's output.
-    Decoder { model: Box<Model>, scale: f64, latent: Adam, weights: Adam },
+    /// A decoder: the density is `scale` times its output. The paper's
+    /// model moves its weights too; the learned prior holds them
+    /// (`weights` None) and pulls its latent towards 0, the training
+    /// plumes' mean, by `penalty` times the latent in the latent's gradient.
+    Decoder { model: Box<Model>, scale: f64, latent: Adam, weights: Option<Adam>, penalty: f64 },
 }
 
 impl Params {
@@ -39,11 +43,14 @@ impl Params {
                 adam.step(log_values, &log_grad);
                 from_log(density, log_values, hull);
             }
-            Params::Decoder { model, scale, latent, weights } => {
+            Params::Decoder { model, scale, latent, weights, penalty } => {
                 let grad_out: Vec<f64> = grad.iter().map(|g| g * *scale).collect();
-                let (grad_z, grad_w) = model.decoder.backward(&model.z, &model.w, &model.mask, &grad_out);
+                let (mut grad_z, grad_w) = model.decoder.backward(&model.z, &model.w, &model.mask, &grad_out);
+                grad_z.iter_mut().zip(&model.z).for_each(|(g, z)| *g += *penalty * z);
                 latent.step(&mut model.z, &grad_z);
-                weights.step(&mut model.w, &grad_w);
+                if let Some(weights) = weights {
+                    weights.step(&mut model.w, &grad_w);
+                }
                 let out = model.decoder.forward(&model.z, &model.w, &model.mask);
                 density.data = out.iter().map(|v| v * *scale).collect();
             }
@@ -70,15 +77,50 @@ pub(super) fn decoder_start(grid: &Grid<f64>, hull: &[bool], settings: &FitSetti
     let decoder = Decoder::paper_small(settings.resolution)?;
     let model =
         Model { z: decoder.init_latent(settings.seed), w: decoder.init(settings.seed), mask: hull.to_vec(), decoder };
+    let paper = TrainSettings::default();
+    let (latent, weights) = (Adam::new(model.z.len(), paper.lr_latent), Adam::new(model.w.len(), paper.lr_weights));
+    decoded_start(grid, model, latent, Some(weights), 0.0, settings)
+}
+
+/// The learned prior's stage: its decoder (weights held) at the training
+/// plumes' mean latent, 0, on `grid`, its output scaled to the start's
+/// optical depth; Adam steps and latent penalty as Table 1's prior fit,
+/// the penalty relative to `image_power`, the photographs' mean square.
+pub(super) fn prior_start(
+    grid: &Grid<f64>,
+    hull: &[bool],
+    settings: &FitSettings,
+    image_power: f64,
+) -> Result<(Grid<f64>, Params)> {
+    let prior = Prior::load(&crate::prior::default_dir()?)?;
+    prior.check_grid(grid.shape)?;
+    let z = vec![0.0; prior.decoder.latent()];
+    let model = Model { z, w: prior.w, mask: hull.to_vec(), decoder: prior.decoder };
+    let fit = TrainSettings::prior();
+    // d/dz of latent_penalty * image_power * mean(z^2), as Table 1's prior fit.
+    let penalty = 2.0 * fit.latent_penalty * image_power / model.z.len() as f64;
+    let latent = Adam::new(model.z.len(), fit.lr_latent);
+    decoded_start(grid, model, latent, None, penalty, settings)
+}
+
+/// A decoder's stage from `model` as it is, its output scaled to the start's optical depth.
+fn decoded_start(
+    grid: &Grid<f64>,
+    model: Model,
+    latent: Adam,
+    weights: Option<Adam>,
+    penalty: f64,
+    settings: &FitSettings,
+) -> Result<(Grid<f64>, Params)> {
     let out = model.decoder.forward(&model.z, &model.w, &model.mask);
     if !out.iter().any(|&v| v > 0.0) {
-        return Err(Error("the decoder's first output is 0 everywhere in the hull: try another seed".into()));
+        return Err(Error(
+            "the decoder's first output is 0 everywhere in the hull (the paper's decoder: try another seed)".into(),
+        ));
     }
     let scale = depth_scale(grid, &out, settings.start_depth);
     let density = Grid::new(grid.lo, grid.hi, grid.shape, out.iter().map(|v| v * scale).collect());
-    let paper = TrainSettings::default();
-    let (latent, weights) = (Adam::new(model.z.len(), paper.lr_latent), Adam::new(model.w.len(), paper.lr_weights));
-    Ok((density, Params::Decoder { model: Box::new(model), scale, latent, weights }))
+    Ok((density, Params::Decoder { model: Box::new(model), scale, latent, weights, penalty }))
 }
 
 /// A cube of `n` voxels a side, centred on the box `lo`..`hi`, its edge the box's longest.
@@ -224,4 +266,37 @@ fn mean_inside(density: &Grid<f64>, hull: &[bool]) -> f64 {
     let (sum, n) =
         density.data.iter().zip(hull).filter(|(_, &h)| h).fold((0.0, 0usize), |(s, n), (d, _)| (s + d, n + 1));
     sum / n.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The learned prior's steps move its latent alone, pulled towards 0 by
+    /// the penalty where the images' gradient is 0; its weights are held.
+    #[test]
+    fn the_learned_prior_moves_its_latent_and_holds_its_weights() {
+        let (lo, hi) = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
+        let grid = cube_around(&lo, &hi, 64);
+        let hull = in_box(&grid, &lo, &hi);
+        let settings = FitSettings { prior: 1, ..FitSettings::default() };
+        let (mut density, mut params) = prior_start(&grid, &hull, &settings, 1.0).unwrap();
+        let held = Prior::load(&crate::prior::default_dir().unwrap()).unwrap().w;
+        let Params::Decoder { model, .. } = &params else { panic!("not a decoder's stage") };
+        assert!(model.z.iter().all(|&z| z == 0.0), "the prior starts at the training plumes' mean");
+        // Less density everywhere in the hull: the latent moves.
+        let grad: Vec<f64> = hull.iter().map(|&h| if h { 1.0 } else { 0.0 }).collect();
+        let before: f64 = density.data.iter().sum();
+        params.step(&mut density, &hull, &grad);
+        let Params::Decoder { model, .. } = &mut params else { unreachable!() };
+        assert!(model.z.iter().any(|&z| z != 0.0) && model.w == held, "the latent moves, the weights do not");
+        assert!(density.data.iter().sum::<f64>() < before, "a step against more density gave more");
+        // Without the images' gradient the penalty alone pulls the latent back.
+        let (mut density, mut params) = prior_start(&grid, &hull, &settings, 1.0).unwrap();
+        let Params::Decoder { model, .. } = &mut params else { unreachable!() };
+        model.z = vec![1.0; model.z.len()];
+        params.step(&mut density, &hull, &vec![0.0; grid.len()]);
+        let Params::Decoder { model, .. } = &params else { unreachable!() };
+        assert!(model.z.iter().all(|&z| z < 1.0), "the penalty did not pull the latent towards 0");
+    }
 }

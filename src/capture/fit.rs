@@ -22,7 +22,8 @@
 
 use super::align::{take_out_shared, warp, Corrections, Free};
 use super::density::{
-    cube_around, decoder_start, grid_shape, in_box, start_density, start_shape, upsample, voxel_params, Params,
+    cube_around, decoder_start, grid_shape, in_box, prior_start, start_density, start_shape, upsample, voxel_params,
+    Params,
 };
 use super::lighting::{
     candidate_lights, disc_points, fit_gains, fit_gains_and_blacks, fit_lights, light_share, place_lights, weights_of,
@@ -147,9 +148,11 @@ pub fn fit_aligning_from(
 fn all_stages(mut state: FrameFit, progress: &mut dyn FnMut(&FitRow)) -> Result<Fit> {
     let settings = state.settings;
     let levels = settings.updates.len();
-    // The stages: every level, coarsest first; or the decoder's, then the finest level.
-    let stages: Vec<(Option<usize>, usize)> = if settings.decoder > 0 {
-        vec![(None, settings.decoder), (Some(levels - 1), settings.updates[levels - 1])]
+    // The stages: every level, coarsest first; or a decoder's (the paper's
+    // or the learned prior's), then the finest level.
+    let decoded = settings.decoder.max(settings.prior);
+    let stages: Vec<(Option<usize>, usize)> = if decoded > 0 {
+        vec![(None, decoded), (Some(levels - 1), settings.updates[levels - 1])]
     } else {
         settings.updates.iter().enumerate().map(|(level, &updates)| (Some(level), updates)).collect()
     };
@@ -203,7 +206,7 @@ pub fn fit_from(
     fixed: Option<&Corrections>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
-    let settings = FitSettings { align: false, decoder: 0, ..settings.clone() };
+    let settings = FitSettings { align: false, decoder: 0, prior: 0, ..settings.clone() };
     settings.validate()?;
     let mut state = FrameFit::new(cameras, images, smoke_box, &settings, fixed)?;
     state.scene.density = start;
@@ -398,6 +401,7 @@ impl<'a> FrameFit<'a> {
     ) -> Result<(Grid<f64>, Params)> {
         let settings = self.settings;
         Ok(match (stage, level) {
+            (0, None) if settings.prior > 0 => prior_start(grid, hull, settings, mean_square(&self.images))?,
             (0, None) => decoder_start(grid, hull, settings)?,
             (_, None) => unreachable!("the decoder's stage is the first"),
             (0, Some(_)) => {
@@ -504,6 +508,13 @@ impl<'a> FrameFit<'a> {
             seconds: self.start.elapsed().as_secs_f64(),
         })
     }
+}
+
+/// The mean square of every pixel of `images`: the scale a penalty on a
+/// mean squared error is set against.
+fn mean_square(images: &[Image]) -> f64 {
+    let pixels = images.iter().map(|i| i.data.len()).sum::<usize>().max(1) as f64;
+    images.iter().flat_map(|i| &i.data).map(|v| v * v).sum::<f64>() / pixels
 }
 
 /// The training cameras' corrections so far, per camera: what
@@ -822,6 +833,46 @@ mod tests {
         assert!(cube.validate().unwrap_err().0.contains("decoder"), "a decoder needs a cube of 4 * 2^n voxels");
         let per_frame = FitSettings { align: true, shared_alignment: false, ..cube };
         assert!(FitSettings { resolution: 8, ..per_frame }.validate().unwrap_err().0.contains("shared_alignment"));
+    }
+
+    /// The learned prior's latent fits three views of a ball from the
+    /// training plumes' mean, then the finest level goes on from its
+    /// density; a prior together with the paper's decoder, or on a grid it
+    /// does not decode, is refused.
+    #[test]
+    fn the_learned_prior_stage_fits_a_ball_before_the_finest_level() {
+        let (cameras, images) = ball_views(64, 10.0);
+        let smoke_box = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
+        let settings = FitSettings {
+            model: ImageModel::EmissionAbsorption,
+            factor: 4,
+            resolution: 64,
+            updates: vec![10, 5],
+            prior: 20,
+            smoothness: 0.0,
+            align: false,
+            gains: false,
+            threshold: 0.0,
+            ..FitSettings::default()
+        };
+        let done = fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap();
+        let stage = |s: usize| done.log.iter().filter(|r| r.level == s).map(|r| r.image_mse).collect::<Vec<f64>>();
+        let (prior, finest) = (stage(0), stage(1));
+        assert_eq!((prior.len(), finest.len()), (20, 5));
+        assert!(
+            prior[19] < 0.7 * prior[0],
+            "the prior's stage lowered the error from {} to only {}",
+            prior[0],
+            prior[19]
+        );
+        assert!(finest[0] < 0.7 * prior[0], "the finest level did not start from the prior's fit");
+        assert!(finest[4] < prior[19], "the finest level did not go on from the prior's fit");
+        assert_eq!(done.scene.density.shape, grid_shape(&smoke_box.0, &smoke_box.1, 64));
+        assert!(done.scene.density.data.iter().all(|d| d.is_finite() && *d >= 0.0));
+        let both = FitSettings { decoder: 10, ..settings.clone() };
+        assert!(both.validate().unwrap_err().0.contains("set one of them"));
+        let coarse = FitSettings { resolution: 32, ..settings };
+        assert!(coarse.validate().unwrap_err().0.contains("decodes 64^3 grids"), "{:?}", coarse.validate());
     }
 
     /// With the density held at the truth's, the lighting comes back: two

@@ -257,6 +257,15 @@ pub struct FitSettings {
     /// frames 250 updates fitted the training cameras closer and lost 0.4 dB
     /// on the scoring camera, at 4-5 times the time.
     pub decoder: usize,
+    /// Adam updates of the learned prior's latent before the per-voxel fit:
+    /// the project's decoder pretrained on simulated plumes
+    /// ([`crate::prior::default_dir`], its weights held), its 64^3 output
+    /// on the cube around the smoke box, under the latent penalty of Table
+    /// 1's prior fit. What it may bring: where four views leave the smoke's
+    /// place along their rays open, a plume's shape instead of an even
+    /// spread. The per-voxel fit then runs at the finest level only, from
+    /// its density, as after `decoder`. 0: none.
+    pub prior: usize,
     /// Seed of every render.
     pub seed: u64,
 }
@@ -317,6 +326,7 @@ impl Default for FitSettings {
             ambient: true,
             gamma: 1.0,
             decoder: 0,
+            prior: 0,
             seed: 0,
         }
     }
@@ -423,9 +433,17 @@ impl FitSettings {
         if self.decoder > 0 && crate::model::Decoder::paper_small(self.resolution).is_err() {
             return bad("with decoder, resolution must be 8, 16, 32, 64, 128, ... (the decoder's cube)");
         }
+        if self.decoder > 0 && self.prior > 0 {
+            return bad("decoder and prior are two starts: set one of them");
+        }
+        if self.prior > 0 {
+            let r = self.resolution;
+            let prior = crate::prior::Prior::load(&crate::prior::default_dir()?)?;
+            prior.check_grid([r, r, r]).map_err(|e| Error(format!("fit settings: prior: {}", e.0)))?;
+        }
         // Aligned on the frame, the finest stage would carve its hull before any alignment.
-        if self.decoder > 0 && self.align && !self.shared_alignment {
-            return bad("decoder needs the cameras aligned once per capture (shared_alignment) or not at all");
+        if (self.decoder > 0 || self.prior > 0) && self.align && !self.shared_alignment {
+            return bad("decoder and prior need the cameras aligned once per capture (shared_alignment) or not at all");
         }
         Ok(())
     }
@@ -554,6 +572,7 @@ mod tests {
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 n if n.starts_with("decoder_") => settings.decoder.to_string() == n["decoder_".len()..],
+                n if n.starts_with("prior_") => settings.prior.to_string() == n["prior_".len()..],
                 _ => false,
             };
             let changed = name.split('+').all(says);

@@ -38,6 +38,16 @@ pub const FORMAT: u32 = 1;
 /// Where the committed prior lives, relative to the repository root.
 pub const DEFAULT_DIR: &str = "models/plume64";
 
+/// The project's prior: [`DEFAULT_DIR`] beside the working directory, else
+/// in the source tree this was built from; an error naming both if in neither.
+pub fn default_dir() -> Result<PathBuf> {
+    let here = PathBuf::from(DEFAULT_DIR);
+    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_DIR);
+    [here, built.clone()].into_iter().find(|d| d.join("prior.json").exists()).ok_or_else(|| {
+        Error(format!("the default prior {DEFAULT_DIR} is in neither ./{DEFAULT_DIR} nor {}", built.display()))
+    })
+}
+
 /// Latent size of the prior.
 pub const LATENT: usize = 64;
 
