@@ -124,6 +124,7 @@ impl Rig {
             // The cameras' alignment, coarse to fine per voxel, whatever the
             // frames' own fits start from: every setting of them sees the same cameras.
             decoder: 0,
+            prior: 0,
             ..settings.clone()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;
