@@ -264,7 +264,9 @@ pub struct FitSettings {
     /// 1's prior fit. What it may bring: where four views leave the smoke's
     /// place along their rays open, a plume's shape instead of an even
     /// spread. The per-voxel fit then runs at the finest level only, from
-    /// its density, as after `decoder`. 0: none.
+    /// its density, as after `decoder`. 0: none. Off: on the settings
+    /// study's frames 60 updates fitted the training cameras 11 % less
+    /// closely and lost 0.35 dB on the scoring camera.
     pub prior: usize,
     /// Seed of every render.
     pub seed: u64,
