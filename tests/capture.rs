@@ -45,8 +45,9 @@ fn a_transforms_json_reads_folders_of_images_of_every_kind() {
         let data: Vec<f64> = (0..24).map(|i| 0.01 * (i + n) as f64).collect();
         npy::write_f32(&dir.join("cam_c").join(format!("{n}.npy")), &[4, 6], &data).unwrap();
     }
+    // nerfstudio's OPENCV lens with its coefficients 0 is a pinhole.
     let calib = json!({
-        "camera_angle_x": 0.8, "w": 6, "h": 4,
+        "camera_angle_x": 0.8, "w": 6, "h": 4, "camera_model": "OPENCV", "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
         "frames": [
             {"file_path": "cam_a", "transform_matrix": looking_at_origin(0.0, 2.0)},
             {"file_path": "cam_b", "transform_matrix": looking_at_origin(2.0, 0.0), "fl_x": 7.0, "cx": 2.5},
@@ -110,6 +111,18 @@ fn a_bad_capture_is_a_one_line_error_before_any_work() {
             "no intrinsics",
             json!({"frames": [{"file_path": "one.png", "transform_matrix": looking_at_origin(0.0, 2.0)}]}),
             "no intrinsics",
+        ),
+        (
+            "a fisheye",
+            json!({"camera_model": "OPENCV_FISHEYE", "camera_angle_x": 0.5,
+                "frames": [{"file_path": "one.png", "transform_matrix": looking_at_origin(0.0, 2.0)}]}),
+            "camera_model OPENCV_FISHEYE: dualphoton models pinhole cameras",
+        ),
+        (
+            "a distorted lens",
+            json!({"camera_model": "OPENCV", "camera_angle_x": 0.5, "k1": 0.0,
+                "frames": [{"file_path": "one.png", "transform_matrix": looking_at_origin(0.0, 2.0), "p2": -0.01}]}),
+            "frames[0]: lens distortion p2 = -0.01: dualphoton models pinhole cameras: undistort",
         ),
         ("no cameras", json!({"frames": []}), "no cameras"),
     ];

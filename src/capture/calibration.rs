@@ -156,10 +156,38 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
             (None, Some(angle)) => lens_from_angle(angle, width, height, &format!("{path}.camera_angle_x"))?,
             (None, None) => bail!("{path}: no intrinsics: give camera_angle_x or fl_x (here or at the top)"),
         };
+        pinhole(&f, top, &path)?;
         let camera = posed(&f, lens, width, height)?;
         views.push(View { name: stem(&source), camera, frames, held_out: false });
     }
     Ok(Capture { views, smoke_box: None })
+}
+
+/// The lens models of a `transforms.json` (nerfstudio's `camera_model`)
+/// that are a pinhole when their distortion coefficients are 0.
+const PINHOLE_MODELS: [&str; 3] = ["PINHOLE", "SIMPLE_PINHOLE", "OPENCV"];
+
+/// The distortion coefficients a `transforms.json` may give (OpenCV's).
+const DISTORTION: [&str; 6] = ["k1", "k2", "k3", "k4", "p1", "p2"];
+
+/// Errors unless camera `path`'s lens (its own fields, else the top's) is a
+/// pinhole: a camera is rendered as one, so a fisheye or a distorted lens
+/// would put every ray of its photographs in the wrong place, unnoticed.
+fn pinhole(camera: &Fields, top: &Fields, path: &str) -> Result<()> {
+    let undistort = "dualphoton models pinhole cameras: undistort the images first (e.g. COLMAP's \
+                     image_undistorter) and give their pinhole intrinsics";
+    if let Some(model) = inherited::<String>(camera, top, "camera_model")? {
+        if !PINHOLE_MODELS.contains(&model.as_str()) {
+            bail!("{path}: camera_model {model}: {undistort}");
+        }
+    }
+    for key in DISTORTION {
+        match inherited::<f64>(camera, top, key)? {
+            Some(k) if k != 0.0 => bail!("{path}: lens distortion {key} = {k}: {undistort}"),
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// A square-pixel lens with horizontal field of view `angle` (radians) over
