@@ -206,7 +206,7 @@ pub fn fit_from(
     fixed: Option<&Corrections>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
-    let settings = FitSettings { align: false, decoder: 0, prior: 0, ..settings.clone() };
+    let settings = FitSettings { align: false, decoder: 0, prior: 0, prior_stretched: false, ..settings.clone() };
     settings.validate()?;
     let mut state = FrameFit::new(cameras, images, smoke_box, &settings, fixed)?;
     state.scene.density = start;
@@ -374,6 +374,10 @@ impl<'a> FrameFit<'a> {
             Some(level) => {
                 let shape = grid_shape(&lo, &hi, settings.resolution >> (levels - 1 - level));
                 Grid::new(lo, hi, shape, vec![0.0; shape.iter().product()])
+            }
+            None if settings.prior_stretched => {
+                let n = settings.resolution;
+                Grid::new(lo, hi, [n, n, n], vec![0.0; n * n * n])
             }
             None => cube_around(&lo, &hi, settings.resolution),
         };
@@ -899,6 +903,14 @@ mod tests {
         assert!(finest[4] < prior[19], "the finest level did not go on from the prior's fit");
         assert_eq!(done.scene.density.shape, grid_shape(&smoke_box.0, &smoke_box.1, 64));
         assert!(done.scene.density.data.iter().all(|d| d.is_finite() && *d >= 0.0));
+        // Stretched over the box, the prior's grid has the box's proportions.
+        let stretched = FitSettings { prior_stretched: true, ..settings.clone() };
+        let done = fit(&cameras, &images, smoke_box, &stretched, None, &mut |_| {}).unwrap();
+        let prior_stage: Vec<f64> = done.log.iter().filter(|r| r.level == 0).map(|r| r.image_mse).collect();
+        assert!(prior_stage[19] < 0.7 * prior_stage[0], "stretched, the prior's stage fitted nothing");
+        assert_ne!(prior_stage, prior, "prior_stretched changed nothing");
+        let alone = FitSettings { prior: 0, ..stretched };
+        assert!(alone.validate().unwrap_err().0.contains("needs prior"));
         let both = FitSettings { decoder: 10, ..settings.clone() };
         assert!(both.validate().unwrap_err().0.contains("set one of them"));
         let coarse = FitSettings { resolution: 32, ..settings };

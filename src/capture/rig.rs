@@ -125,6 +125,7 @@ impl Rig {
             // frames' own fits start from: every setting of them sees the same cameras.
             decoder: 0,
             prior: 0,
+            prior_stretched: false,
             ..settings.clone()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;

@@ -268,6 +268,10 @@ pub struct FitSettings {
     /// study's frames 60 updates fitted the training cameras 11 % less
     /// closely and lost 0.35 dB on the scoring camera.
     pub prior: usize,
+    /// With `prior`: its 64^3 grid stretched over the smoke box itself, as
+    /// a made capture's plume is ([`super::density::plume_in_box`]),
+    /// instead of on the cube around the box (the prior's own proportions).
+    pub prior_stretched: bool,
     /// Seed of every render.
     pub seed: u64,
 }
@@ -329,6 +333,7 @@ impl Default for FitSettings {
             gamma: 1.0,
             decoder: 0,
             prior: 0,
+            prior_stretched: false,
             seed: 0,
         }
     }
@@ -437,6 +442,9 @@ impl FitSettings {
         }
         if self.decoder > 0 && self.prior > 0 {
             return bad("decoder and prior are two starts: set one of them");
+        }
+        if self.prior_stretched && self.prior == 0 {
+            return bad("prior_stretched stretches the learned prior's grid: it needs prior");
         }
         if self.prior > 0 {
             let r = self.resolution;
@@ -574,6 +582,7 @@ mod tests {
                 n if n.starts_with("depth_") => settings.start_depth.to_string() == n["depth_".len()..],
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 n if n.starts_with("decoder_") => settings.decoder.to_string() == n["decoder_".len()..],
+                "prior_stretched" => settings.prior_stretched,
                 n if n.starts_with("prior_") => settings.prior.to_string() == n["prior_".len()..],
                 _ => false,
             };
