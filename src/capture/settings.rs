@@ -266,7 +266,8 @@ pub struct FitSettings {
     /// spread. The per-voxel fit then runs at the finest level only, from
     /// its density, as after `decoder`. 0: none. Off: on the settings
     /// study's frames 60 updates fitted the training cameras 11 % less
-    /// closely and lost 0.35 dB on the scoring camera.
+    /// closely and lost 0.35 dB on the scoring camera, and 3 dB on a
+    /// capture made from the prior's own simulator.
     pub prior: usize,
     /// With `prior`: its 64^3 grid stretched over the smoke box itself, as
     /// a made capture's plume is ([`super::density::plume_in_box`]),
