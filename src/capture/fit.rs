@@ -792,31 +792,39 @@ mod tests {
         assert_eq!(held.offsets, corrections(&second).apply(&cameras, 4).unwrap().1);
     }
 
-    /// The paper's model fits three views of a ball, then the finest level
-    /// goes on from its density; settings it cannot run with are refused.
-    #[test]
-    fn the_decoder_stage_fits_a_ball_before_the_finest_level() {
+    /// A box longer along y (a decoder's cube holds voxels outside it).
+    const TALL_BOX: (Vec3, Vec3) = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
+
+    /// Three views of a ball in [`TALL_BOX`] fitted under emission-absorption
+    /// on the images alone, with `settings`' grid, updates and start: the
+    /// fit, and each update's image error in its first and second stage.
+    fn decoded_ball_fit(settings: &FitSettings) -> (Fit, Vec<f64>, Vec<f64>) {
         let (cameras, images) = ball_views(64, 10.0);
-        // A box longer along y: the decoder's cube holds voxels outside it.
-        let smoke_box = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
         let settings = FitSettings {
             model: ImageModel::EmissionAbsorption,
             // The silhouettes' margin is 10 pixels at 1/4: the hull leaves voxels out.
             factor: 4,
-            resolution: 8,
-            updates: vec![10, 15],
-            decoder: 30,
             // The images alone: in so small a scene the smoothness term pulls
-            // the decoder's rough density back up the images' error.
+            // a decoder's rough density back up the images' error.
             smoothness: 0.0,
             align: false,
             gains: false,
             threshold: 0.0,
-            ..FitSettings::default()
+            ..settings.clone()
         };
-        let done = fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap();
+        let done = fit(&cameras, &images, TALL_BOX, &settings, None, &mut |_| {}).unwrap();
         let stage = |s: usize| done.log.iter().filter(|r| r.level == s).map(|r| r.image_mse).collect::<Vec<f64>>();
-        let (decoder, finest) = (stage(0), stage(1));
+        let (first, second) = (stage(0), stage(1));
+        (done, first, second)
+    }
+
+    /// The paper's model fits three views of a ball, then the finest level
+    /// goes on from its density; settings it cannot run with are refused.
+    #[test]
+    fn the_decoder_stage_fits_a_ball_before_the_finest_level() {
+        let settings = FitSettings { resolution: 8, updates: vec![10, 15], decoder: 30, ..FitSettings::default() };
+        let (done, decoder, finest) = decoded_ball_fit(&settings);
+        let smoke_box = TALL_BOX;
         // The decoder's updates, then the finest level's only.
         assert_eq!((decoder.len(), finest.len(), done.log.len()), (30, 15, 45));
         assert!(
@@ -875,23 +883,9 @@ mod tests {
     /// does not decode, is refused.
     #[test]
     fn the_learned_prior_stage_fits_a_ball_before_the_finest_level() {
-        let (cameras, images) = ball_views(64, 10.0);
-        let smoke_box = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
-        let settings = FitSettings {
-            model: ImageModel::EmissionAbsorption,
-            factor: 4,
-            resolution: 64,
-            updates: vec![10, 5],
-            prior: 20,
-            smoothness: 0.0,
-            align: false,
-            gains: false,
-            threshold: 0.0,
-            ..FitSettings::default()
-        };
-        let done = fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap();
-        let stage = |s: usize| done.log.iter().filter(|r| r.level == s).map(|r| r.image_mse).collect::<Vec<f64>>();
-        let (prior, finest) = (stage(0), stage(1));
+        let settings = FitSettings { resolution: 64, updates: vec![10, 5], prior: 20, ..FitSettings::default() };
+        let (done, prior, finest) = decoded_ball_fit(&settings);
+        let smoke_box = TALL_BOX;
         assert_eq!((prior.len(), finest.len()), (20, 5));
         assert!(
             prior[19] < 0.7 * prior[0],
@@ -905,8 +899,7 @@ mod tests {
         assert!(done.scene.density.data.iter().all(|d| d.is_finite() && *d >= 0.0));
         // Stretched over the box, the prior's grid has the box's proportions.
         let stretched = FitSettings { prior_stretched: true, ..settings.clone() };
-        let done = fit(&cameras, &images, smoke_box, &stretched, None, &mut |_| {}).unwrap();
-        let prior_stage: Vec<f64> = done.log.iter().filter(|r| r.level == 0).map(|r| r.image_mse).collect();
+        let (_, prior_stage, _) = decoded_ball_fit(&stretched);
         assert!(prior_stage[19] < 0.7 * prior_stage[0], "stretched, the prior's stage fitted nothing");
         assert_ne!(prior_stage, prior, "prior_stretched changed nothing");
         let alone = FitSettings { prior: 0, ..stretched };
