@@ -49,6 +49,13 @@ impl Image {
     }
 }
 
+/// The mean square of every pixel of `images`: the scale a penalty on
+/// their mean squared error is set against (0 for no pixels).
+pub fn mean_square(images: &[Image]) -> f64 {
+    let pixels = images.iter().map(|i| i.data.len()).sum::<usize>().max(1) as f64;
+    images.iter().flat_map(|i| &i.data).map(|v| v * v).sum::<f64>() / pixels
+}
+
 /// The 99.5th percentile of the positive finite values, or 1 if there are
 /// none: the white point of a PNG preview and the scale of a silhouette.
 pub fn auto_white(values: &[f64]) -> f64 {

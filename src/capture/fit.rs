@@ -405,7 +405,9 @@ impl<'a> FrameFit<'a> {
     ) -> Result<(Grid<f64>, Params)> {
         let settings = self.settings;
         Ok(match (stage, level) {
-            (0, None) if settings.prior > 0 => prior_start(grid, hull, settings, mean_square(&self.images))?,
+            (0, None) if settings.prior > 0 => {
+                prior_start(grid, hull, settings, crate::image::mean_square(&self.images))?
+            }
             (0, None) => decoder_start(grid, hull, settings)?,
             (_, None) => unreachable!("the decoder's stage is the first"),
             (0, Some(_)) => {
@@ -512,13 +514,6 @@ impl<'a> FrameFit<'a> {
             seconds: self.start.elapsed().as_secs_f64(),
         })
     }
-}
-
-/// The mean square of every pixel of `images`: the scale a penalty on a
-/// mean squared error is set against.
-fn mean_square(images: &[Image]) -> f64 {
-    let pixels = images.iter().map(|i| i.data.len()).sum::<usize>().max(1) as f64;
-    images.iter().flat_map(|i| &i.data).map(|v| v * v).sum::<f64>() / pixels
 }
 
 /// The training cameras' corrections so far, per camera: what

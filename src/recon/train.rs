@@ -211,8 +211,7 @@ pub fn train(
     let coarse_updates = coarse_updates(settings, coarse.is_some());
     let mut rng = Rng::new(settings.seed, Purpose::Gradient, 1_000_000);
     let estimator = settings.gradient;
-    let pixels = fine.targets.iter().map(|t| t.data.len()).sum::<usize>().max(1) as f64;
-    let target_power = fine.targets.iter().flat_map(|t| &t.data).map(|v| v * v).sum::<f64>() / pixels;
+    let target_power = crate::image::mean_square(&fine.targets);
     for it in 0..settings.iterations {
         let elapsed = start.elapsed().as_secs_f64();
         let coarse_now = match settings.time_budget {
