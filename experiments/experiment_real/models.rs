@@ -88,6 +88,13 @@ pub struct FitResult {
     pub psnr_oracle_aligned_db: Option<f64>,
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub rel_rmse_oracle_aligned: Option<f64>,
+    /// The held-out view averaged over the calibration error the training
+    /// cameras show (`capture::expected_view`): its PSNR and relative RMSE.
+    /// Needs nothing of the held-out photograph.
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub psnr_expected_db: Option<f64>,
+    #[serde(default, serialize_with = "fmt::opt_f4")]
+    pub rel_rmse_expected: Option<f64>,
 }
 
 /// The rig, fitted under the model `settings` chose for it, in words and a
@@ -204,12 +211,17 @@ pub fn run(
                 oracle_aligned_shift_px: format!("{}/{}", held.aligned.shift[0], held.aligned.shift[1]),
                 psnr_oracle_aligned_db: held.aligned.score.psnr,
                 rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
+                psnr_expected_db: held.expected.psnr,
+                rel_rmse_expected: held.expected.rel_rmse,
             };
             eprintln!(
-                "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} %, fit {:.0} s, render {:.0} s",
+                "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} % (expected view {:.2} dB, {:.1} %), \
+                 fit {:.0} s, render {:.0} s",
                 model.name(),
                 held.score.psnr.unwrap_or(f64::NAN),
                 100.0 * held.score.rel_rmse.unwrap_or(f64::NAN),
+                held.expected.psnr.unwrap_or(f64::NAN),
+                100.0 * held.expected.rel_rmse.unwrap_or(f64::NAN),
                 row.fit_s,
                 row.render_s
             );

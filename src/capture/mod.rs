@@ -23,11 +23,14 @@
 //! - [`temporal`] brings neighbouring frames' densities onto one frame's.
 //! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
 //! - [`protocol`] is the field's held-out-view evaluation: area
-//!   downsampling, a fixed crop, PSNR and relative RMSE.
+//!   downsampling, a fixed crop, PSNR and relative RMSE;
+//!   [`expected_view`] averages a held-out view over the calibration error
+//!   the training cameras show.
 
 pub mod align;
 pub mod calibration;
 pub mod density;
+pub mod expected_view;
 pub mod fit;
 pub mod frame;
 pub mod frames;

@@ -132,12 +132,20 @@ impl Aligned {
 /// `image` magnified `k` times about `[cx, cy]` (pixel units, as a camera's
 /// principal point), sampled bilinearly, black where nothing maps in: what
 /// the same camera with focal lengths `k` times as long would see.
-fn magnified(image: &Image, k: f64, [cx, cy]: [f64; 2]) -> Image {
+fn magnified(image: &Image, k: f64, principal: [f64; 2]) -> Image {
+    moved(image, k, [0.0, 0.0], principal)
+}
+
+/// `image` magnified `k` times about `[cx, cy]`, then moved by `[dx, dy]`
+/// pixels (right, down), sampled bilinearly, black where nothing maps in:
+/// what the same camera would see with focal lengths `k` times as long and
+/// its principal point moved by `[dx, dy]`.
+pub fn moved(image: &Image, k: f64, [dx, dy]: [f64; 2], [cx, cy]: [f64; 2]) -> Image {
     let (w, h) = (image.width, image.height);
     let data = (0..w * h)
         .map(|i| {
             let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
-            sample(image, cx + (x - cx) / k, cy + (y - cy) / k)
+            sample(image, cx + (x - cx - dx) / k, cy + (y - cy - dy) / k)
         })
         .collect();
     Image { width: w, height: h, data }
