@@ -97,8 +97,7 @@ pub(super) fn prior_start(
     let z = vec![0.0; prior.decoder.latent()];
     let model = Model { z, w: prior.w, mask: hull.to_vec(), decoder: prior.decoder };
     let fit = TrainSettings::prior();
-    // d/dz of latent_penalty * image_power * mean(z^2), as Table 1's prior fit.
-    let penalty = 2.0 * fit.latent_penalty * image_power / model.z.len() as f64;
+    let penalty = fit.latent_penalty_slope(image_power, model.z.len());
     let latent = Adam::new(model.z.len(), fit.lr_latent);
     decoded_start(grid, model, latent, None, penalty, settings)
 }

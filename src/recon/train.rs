@@ -90,6 +90,13 @@ impl Default for TrainSettings {
 }
 
 impl TrainSettings {
+    /// The latent penalty's gradient in `z_k` over `z_k`, for a latent of
+    /// `len` numbers and targets whose mean square is `image_power`:
+    /// `d/dz_k latent_penalty * image_power * mean_k z_k^2`.
+    pub fn latent_penalty_slope(&self, image_power: f64, len: usize) -> f64 {
+        2.0 * self.latent_penalty * image_power / len.max(1) as f64
+    }
+
     /// The learned prior's fit: 60 updates of its latent alone (exact,
     /// `fwd-full`; the weights fixed), half of them at half resolution,
     /// under a latent penalty of 1e-3.
@@ -237,8 +244,7 @@ pub fn train(
         observe(&row, model, &frozen.images);
         let mut g = g?;
         if settings.latent_penalty > 0.0 {
-            let k = model.z.len().max(1) as f64;
-            let scale = 2.0 * settings.latent_penalty * target_power / k;
+            let scale = settings.latent_penalty_slope(target_power, model.z.len());
             for (&i, v) in g.latent.indices.iter().zip(&mut g.latent.values) {
                 *v += scale * model.z[i];
             }
