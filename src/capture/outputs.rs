@@ -14,7 +14,6 @@ use super::calibration;
 use super::fit::{held_out_black, training_views, FitRow};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
 use super::reuse::{self, RunSettings};
-use super::rig::Rig;
 use super::settings::FitSettings;
 use super::Capture;
 use crate::error::{Error, Result};
@@ -122,9 +121,7 @@ pub fn fit_and_write(
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
     let rig = match earlier_rig {
         Some(rig) => Some(rig),
-        None => Rig::if_shared(&capture, &roles.training, settings, &mut |f, fit| {
-            eprintln!("aligned the training cameras on frame {f} under {}", fit.settings.model.name())
-        })?,
+        None => reuse::fit_rig(&capture, &roles, settings)?,
     };
     if let Some(rig) = &rig {
         record.write(out)?;

@@ -163,13 +163,23 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
     if path.exists() && base.aligns_once() {
         return read_rig(path, capture, roles, base).map(Some).map_err(|why| start_afresh(path, &why));
     }
-    let rig = Rig::if_shared(capture, &roles.training, base, &mut |frame, fit| {
-        eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
-    })?;
+    let rig = fit_rig(capture, roles, base)?;
     if let Some(rig) = &rig {
         write_rig(path, rig)?;
     }
     Ok(rig)
+}
+
+/// [`Rig::if_shared`], saying on stderr what it does while it runs (a
+/// minute or more, with nothing else to show).
+pub fn fit_rig(capture: &Capture, roles: &Roles, settings: &FitSettings) -> Result<Option<Rig>> {
+    if settings.aligns_once() {
+        let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
+        eprintln!("rig: aligning the training cameras once for the capture, on frames {frames:?} ...");
+    }
+    Rig::if_shared(capture, &roles.training, settings, &mut |frame, fit| {
+        eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
+    })
 }
 
 /// Writes `rig` as JSON into `path`.
