@@ -131,16 +131,18 @@ pub fn fit_and_write(
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
     let mut log: Vec<FitRow> = Vec::new();
     let result = fit_frame(&capture, &roles, &images, settings, rig.as_ref(), &mut |row| {
-        eprint!(
-            "\rstage {} update {}: image RMSE {:.5} ({:.0} s)   ",
-            row.level,
-            row.update,
-            row.image_mse.sqrt(),
-            row.seconds
-        );
+        // A line every 10 updates: as readable in a log file as in a terminal.
+        if row.update % 10 == 0 {
+            eprintln!(
+                "stage {} update {}: image RMSE {:.5} ({:.0} s)",
+                row.level,
+                row.update,
+                row.image_mse.sqrt(),
+                row.seconds
+            );
+        }
         log.push(row.clone());
     })?;
-    eprintln!();
     write(&run, &capture, &roles, &images.training.images[0], &result, &log)?;
     let scene = &result.fit.scene;
     let d = &scene.density;
