@@ -49,6 +49,10 @@ pub fn moves(offsets_px: &[[f64; 2]], zooms: &[f64]) -> Vec<Move> {
     }
     let points: Vec<Vector3<f64>> =
         (0..n).map(|i| Vector3::new(offsets_px[i][0], offsets_px[i][1], zooms[i].ln())).collect();
+    // A correction that is not a number says nothing of the spread.
+    if points.iter().any(|p| !p.iter().all(|x| x.is_finite())) {
+        return none;
+    }
     let mean = points.iter().sum::<Vector3<f64>>() / n as f64;
     let spread: Matrix3<f64> = points.iter().map(|p| (p - mean) * (p - mean).transpose()).sum::<Matrix3<f64>>()
         * ((n + 1) as f64 / (n * (n - 1)) as f64);
@@ -124,7 +128,14 @@ mod tests {
     #[test]
     fn without_a_spread_the_expected_view_is_the_render() {
         let image = Image { width: 3, height: 2, data: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0] };
-        for (offsets, zooms) in [(vec![], vec![]), (vec![[2.0, 1.0]], vec![1.1]), (vec![[1.0, 1.0]; 3], vec![1.0; 3])] {
+        let cases = [
+            (vec![], vec![]),
+            (vec![[2.0, 1.0]], vec![1.1]),
+            (vec![[1.0, 1.0]; 3], vec![1.0; 3]),
+            (vec![[1.0, 1.0], [2.0, f64::NAN]], vec![1.0, 1.1]),
+            (vec![[1.0, 1.0], [2.0, 3.0]], vec![1.0, 0.0]),
+        ];
+        for (offsets, zooms) in cases {
             let moves = moves(&offsets, &zooms);
             assert_eq!(moves.len(), 1);
             assert_eq!(expected_view(&image, [1.5, 1.0], &moves), image);
