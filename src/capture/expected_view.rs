@@ -18,8 +18,10 @@
 //! out. With fewer than two training cameras nothing is known of the
 //! spread, and the expected view is the render itself.
 
-use super::protocol::moved;
+use super::fit::Fit;
+use super::protocol::{moved, Protocol, Score};
 use crate::image::Image;
+use crate::scene::Camera;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 /// One move of the held-out camera and its weight in the mean.
@@ -91,6 +93,16 @@ pub fn expected_view(prediction: &Image, principal: [f64; 2], moves: &[Move]) ->
         }
     }
     mean
+}
+
+/// The expected view of a held-out `camera` whose render is `prediction`,
+/// with the spread of `fitted`'s training corrections, scored against its
+/// photograph `truth` under the field's protocol.
+pub fn score(camera: &Camera, prediction: &Image, fitted: &Fit, truth: &Image) -> Score {
+    let [_, _, cx, cy] = camera.intrinsics();
+    let view = expected_view(prediction, [cx, cy], &moves(&fitted.offsets_px(), &fitted.zooms));
+    let protocol = Protocol::for_size(camera.width, camera.height);
+    protocol.score(&view, truth)
 }
 
 #[cfg(test)]

@@ -206,7 +206,7 @@ pub fn fit_from(
     fixed: Option<&Corrections>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
-    let settings = FitSettings { align: false, decoder: 0, prior: 0, prior_stretched: false, ..settings.clone() };
+    let settings = FitSettings { align: false, ..settings.per_voxel() };
     settings.validate()?;
     let mut state = FrameFit::new(cameras, images, smoke_box, &settings, fixed)?;
     state.scene.density = start;

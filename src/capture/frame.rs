@@ -4,7 +4,6 @@
 //! under the field's protocol. `dualphoton fit --capture` and
 //! `experiment_real` both go through here.
 
-use super::expected_view;
 use super::fit::{fit, render_view, Fit, FitRow};
 use super::observe::{observe, Observed};
 use super::protocol::{Aligned, Oracle, Protocol, Score};
@@ -100,10 +99,6 @@ pub struct HeldOutView {
     pub prediction: Image,
     /// Against its photograph under the field's protocol.
     pub score: Score,
-    /// The prediction averaged over the calibration error the training
-    /// cameras show ([`expected_view`](super::expected_view)), against the
-    /// photograph under the same protocol.
-    pub expected: Score,
     /// What a gain or a shift known only from its photograph would change
     /// (a diagnostic, never used to choose anything).
     pub oracle: Oracle,
@@ -246,8 +241,5 @@ pub fn held_out_view(capture: &Capture, v: usize, fitted: &Fit, truth: &Image) -
     let oracle = Oracle::of(&seen, &photographed);
     let [_, _, cx, cy] = camera.intrinsics();
     let aligned = Aligned::of(&prediction, [cx, cy], &protocol, &photographed);
-    let moves = expected_view::moves(&fitted.offsets_px(), &fitted.zooms);
-    let expected =
-        Score::of(&protocol.view(&expected_view::expected_view(&prediction, [cx, cy], &moves)), &photographed);
-    Ok(HeldOutView { view: v, prediction, score, expected, oracle, aligned, render_s })
+    Ok(HeldOutView { view: v, prediction, score, oracle, aligned, render_s })
 }

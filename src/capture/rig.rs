@@ -123,10 +123,7 @@ impl Rig {
             factor: settings.rig_factor.unwrap_or(settings.factor),
             // The cameras' alignment, coarse to fine per voxel, whatever the
             // frames' own fits start from: every setting of them sees the same cameras.
-            decoder: 0,
-            prior: 0,
-            prior_stretched: false,
-            ..settings.clone()
+            ..settings.per_voxel()
         };
         let observed = observe(capture, training, &frames, settings.factor)?;
         let mut fit_under = |model: ImageModel, i: usize, from: Option<&Corrections>| {

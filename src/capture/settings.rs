@@ -347,6 +347,13 @@ impl FitSettings {
         self.align && self.shared_alignment
     }
 
+    /// These settings with the density fitted per voxel from the even start
+    /// (no `decoder`, no `prior`): what the rig and a fit from a given
+    /// density run, whatever start the frames' own fits take.
+    pub fn per_voxel(&self) -> FitSettings {
+        FitSettings { decoder: 0, prior: 0, prior_stretched: false, ..self.clone() }
+    }
+
     /// The settings in the JSON file at `path` (fields not given keep their
     /// defaults), checked.
     pub fn read(path: &std::path::Path) -> Result<FitSettings> {
