@@ -104,9 +104,7 @@ fn run(args: Args) -> Result<()> {
     let needed: Vec<usize> = args.frames.iter().flat_map(|&f| f - args.reach..=f + args.reach).collect::<Vec<_>>();
     check(&capture, &roles, &needed, &settings)?;
     let run = Run::start(&args.out)?;
-    let rig = Rig::if_shared(&capture, &roles.training, &settings, &mut |frame, fit| {
-        eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
-    })?;
+    let rig = reuse::fit_rig(&capture, &roles, &settings)?;
     if let Some(rig) = &rig {
         reuse::write_rig(&run.path("rig.json"), rig)?;
     }

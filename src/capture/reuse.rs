@@ -173,13 +173,15 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
 /// [`Rig::if_shared`], saying on stderr what it does while it runs (a
 /// minute or more, with nothing else to show).
 pub fn fit_rig(capture: &Capture, roles: &Roles, settings: &FitSettings) -> Result<Option<Rig>> {
-    if settings.aligns_once() {
-        let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
-        eprintln!("rig: aligning the training cameras once for the capture, on frames {frames:?} ...");
+    if !settings.aligns_once() {
+        return Ok(None);
     }
-    Rig::if_shared(capture, &roles.training, settings, &mut |frame, fit| {
+    let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
+    eprintln!("rig: aligning the training cameras once for the capture, on frames {frames:?} ...");
+    Rig::fit(capture, &roles.training, settings, &mut |frame, fit| {
         eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
     })
+    .map(Some)
 }
 
 /// Writes `rig` as JSON into `path`.
