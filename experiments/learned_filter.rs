@@ -21,6 +21,7 @@ use dualphoton::capture::density::{made_truth, plume_in_box};
 use dualphoton::capture::fit::{fit, fit_from, fit_lighting, training_rmse, Fit};
 use dualphoton::capture::frame::{check, held_out_view, read, CameraChoice, Roles};
 use dualphoton::capture::learned_filter::Normal;
+use dualphoton::capture::reuse;
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::{calibration, Capture};
@@ -141,8 +142,7 @@ fn run(args: Args) -> Result<()> {
             eprintln!("{name} rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
         })?;
         if let Some(rig) = &rig {
-            let json = serde_json::to_value(rig).map_err(|e| Error(e.to_string()))?;
-            write_json(&run.path(&format!("rig_{name}.json")), &json)?;
+            reuse::write_rig(&run.path(&format!("rig_{name}.json")), rig)?;
         }
         Ok(Prepared { capture, roles, rig })
     };

@@ -170,8 +170,9 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
     Ok(rig)
 }
 
-/// [`Rig::if_shared`], saying on stderr what it does while it runs (a
-/// minute or more, with nothing else to show).
+/// The rig `settings` ask for, as [`Rig::if_shared`] gives it, saying on
+/// stderr what it does while it runs (a minute or more, with nothing else
+/// to show).
 pub fn fit_rig(capture: &Capture, roles: &Roles, settings: &FitSettings) -> Result<Option<Rig>> {
     if !settings.aligns_once() {
         return Ok(None);
