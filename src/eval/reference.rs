@@ -64,14 +64,44 @@ pub fn reference(scene: &Scene, plume_seed: u64, spp: u32, dir: &Path) -> Result
     let r = render_path_with_progress(scene, &opts, &progress);
     eprintln!();
     let seconds = start.elapsed().as_secs_f64();
-    for (c, (im, se)) in r.radiance.iter().zip(&r.std_err).enumerate() {
+    // What the cache holds is float32: a fresh run uses the same rounded
+    // images a later run reads back, so both measure the same errors.
+    let stored = Reference {
+        radiance: r.radiance.iter().map(as_f32).collect(),
+        std_err: r.std_err.iter().map(as_f32).collect(),
+    };
+    for (c, (im, se)) in stored.radiance.iter().zip(&stored.std_err).enumerate() {
         npy::write_f32(&dir.join(format!("cam{c}.npy")), &[im.height, im.width], &im.data)?;
         npy::write_f32(&dir.join(format!("cam{c}_stderr.npy")), &[se.height, se.width], &se.data)?;
     }
-    let noise = reference_noise(&r.radiance, &r.std_err, 4);
+    let noise = reference_noise(&stored.radiance, &stored.std_err, 4);
     write_json(
         &manifest_path,
         &json!({"key": wanted, "seconds": seconds, "samples": r.samples, "block_noise": noise, "git": git_revision()}),
     )?;
-    Ok(Reference { radiance: r.radiance, std_err: r.std_err })
+    Ok(stored)
+}
+
+/// `image` rounded to float32, as the cache stores it.
+fn as_f32(image: &Image) -> Image {
+    Image { data: image.data.iter().map(|&v| v as f32 as f64).collect(), ..image.clone() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::scenes::one_light_blob;
+
+    #[test]
+    fn a_fresh_reference_equals_the_cached_one() {
+        let dir = std::env::temp_dir().join(format!("dualphoton-reference-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let scene = one_light_blob(8, 6);
+        let fresh = reference(&scene, 7, 4, &dir).unwrap();
+        let cached = reference(&scene, 7, 4, &dir).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(fresh.radiance.iter().flat_map(|im| &im.data).any(|&v| v > 0.0), "the scene renders black");
+        assert_eq!(fresh.radiance, cached.radiance);
+        assert_eq!(fresh.std_err, cached.std_err);
+    }
 }
