@@ -230,6 +230,15 @@ struct FrameFit<'a> {
     smoke_box: (Vec3, Vec3),
     /// The photographs as decoded: where the silhouettes come from.
     codes: &'a [Image],
+    /// The training cameras at the working resolution, as corrected so far:
+    /// what the silhouettes are carved through.
+    working: Vec<Camera>,
+    /// The photographs through the inverse response at the working resolution.
+    working_photographs: Vec<Image>,
+    /// How many times coarser than the working resolution this stage's
+    /// images are ([`FitSettings::image_pyramid`]); the scene's cameras,
+    /// `photographs` and `images` are at it.
+    scale: usize,
     /// The photographs through the inverse response: linear in the lights.
     photographs: Vec<Image>,
     /// The photographs less their cameras' black levels, over their gains:
@@ -300,7 +309,7 @@ impl<'a> FrameFit<'a> {
             } else {
                 Vec::new()
             },
-            cameras,
+            cameras: cameras.clone(),
             render: RenderSettings {
                 photons: if settings.model == ImageModel::Multiple { settings.photons } else { 0 },
                 spp: settings.spp,
@@ -314,6 +323,9 @@ impl<'a> FrameFit<'a> {
             realign: false,
             smoke_box,
             codes,
+            working: cameras,
+            working_photographs: photographs.clone(),
+            scale: 1,
             images,
             photographs,
             gains,
@@ -342,6 +354,7 @@ impl<'a> FrameFit<'a> {
         updates: usize,
         progress: &mut dyn FnMut(&FitRow),
     ) -> Result<()> {
+        self.set_scale(level.map_or(1, |level| self.settings.image_scale(level, &self.working)));
         let (grid, hull) = self.grid_and_hull(level)?;
         let (mut density, mut params) = self.stage_start(stage, level, &grid, &hull)?;
         let support =
@@ -362,6 +375,24 @@ impl<'a> FrameFit<'a> {
         }
         self.scene.density = density;
         Ok(())
+    }
+
+    /// Puts the scene's cameras and the photographs at 1/`scale` of the
+    /// working resolution, and renders the scene anew there if it was
+    /// rendered before at another (the lighting's refit reads the last render).
+    fn set_scale(&mut self, scale: usize) {
+        if scale == self.scale {
+            return;
+        }
+        self.scale = scale;
+        self.scene.cameras = self.working.iter().map(|c| at_scale(c, scale)).collect();
+        self.photographs = self.working_photographs.iter().map(|p| p.downsample(scale)).collect();
+        self.images = over_response(&self.photographs, &self.gains, &self.blacks);
+        if self.last.is_some() {
+            self.scene.render.seed = self.settings.seed.wrapping_add(self.renders);
+            self.renders += 1;
+            self.last = Some(render_photon(&self.scene).images);
+        }
     }
 
     /// A stage's grid and its visual hull, carved through the cameras as they
@@ -387,7 +418,7 @@ impl<'a> FrameFit<'a> {
             self.codes.iter().map(|im| real_silhouette(im, settings.factor, margin)).collect();
         let inside = in_box(&grid, &lo, &hi);
         let hull: Vec<bool> =
-            carve(&grid, &self.scene.cameras, &silhouettes).iter().zip(&inside).map(|(&h, &i)| h && i).collect();
+            carve(&grid, &self.working, &silhouettes).iter().zip(&inside).map(|(&h, &i)| h && i).collect();
         if !hull.iter().any(|&h| h) {
             return Err(Error("the training cameras' silhouettes have no voxel in common: no smoke in the box".into()));
         }
@@ -426,7 +457,9 @@ impl<'a> FrameFit<'a> {
         if let (true, true, false, Some(rendered)) = (settings.align, stage > 0, held, &self.last) {
             let free = Free { zoom: settings.zoom, roll: settings.roll };
             let moves = Moves { offsets: &mut self.offsets, zooms: &mut self.zooms, rolls: &mut self.rolls };
-            align_cameras(&mut self.scene.cameras, moves, free, rendered, &self.images);
+            let seen = Seen { cameras: &self.scene.cameras, rendered, photos: &self.images, scale: self.scale };
+            align_cameras(&mut self.working, moves, free, seen);
+            self.scene.cameras = self.working.iter().map(|c| at_scale(c, self.scale)).collect();
         }
         let (targets, basis) = self.refit_lighting(stage > 0)?;
         if settings.lights > 0 && stage > 0 && settings.model.lit() {
@@ -524,17 +557,40 @@ struct Moves<'m> {
     rolls: &'m mut [f64],
 }
 
+/// What the cameras are aligned on: their views at one stage's scale.
+struct Seen<'s> {
+    /// The cameras at 1/`scale` of the working resolution.
+    cameras: &'s [Camera],
+    /// Their render before the move.
+    rendered: &'s [Image],
+    /// Their photographs.
+    photos: &'s [Image],
+    /// How many times coarser than the working resolution they are.
+    scale: usize,
+}
+
+/// `camera` (at the working resolution) at 1/`scale` of it: itself at 1.
+fn at_scale(camera: &Camera, scale: usize) -> Camera {
+    if scale == 1 {
+        camera.clone()
+    } else {
+        camera.downsample(scale)
+    }
+}
+
 /// Moves every camera's principal point (and as `free` says scales its
 /// focal lengths and turns it about its optical axis) so that its
-/// photograph agrees with `rendered` (its render before the move), keeping
+/// photograph agrees with its render, as `seen` at one scale, keeping
 /// the mean move and turn 0 and the magnifications' geometric mean 1: a
 /// shift, turn or magnification shared by every camera is the density's to
-/// explain, not the cameras'.
-fn align_cameras(cameras: &mut [Camera], totals: Moves, free: Free, rendered: &[Image], photos: &[Image]) {
-    let warps: Vec<_> = rendered
+/// explain, not the cameras'. `cameras` and `totals` are at the working
+/// resolution: a move of one pixel at the scale is `scale` pixels there.
+fn align_cameras(cameras: &mut [Camera], totals: Moves, free: Free, seen: Seen) {
+    let warps: Vec<_> = seen
+        .rendered
         .iter()
-        .zip(photos)
-        .zip(cameras.iter())
+        .zip(seen.photos)
+        .zip(seen.cameras)
         .map(|((r, p), c)| {
             let [_, _, cx, cy] = c.intrinsics();
             warp(r, p, [cx, cy], free)
@@ -545,7 +601,7 @@ fn align_cameras(cameras: &mut [Camera], totals: Moves, free: Free, rendered: &[
     let mut turns: Vec<f64> = warps.iter().map(|w| w.roll).collect();
     take_out_shared(&mut moves, &mut factors, &mut turns);
     for (c, camera) in cameras.iter_mut().enumerate() {
-        let [dx, dy] = moves[c];
+        let [dx, dy] = moves[c].map(|d| d * seen.scale as f64);
         *camera = camera.shift(dx, dy).zoom(factors[c]).roll(turns[c]);
         totals.offsets[c] = [totals.offsets[c][0] + dx, totals.offsets[c][1] + dy];
         totals.zooms[c] *= factors[c];

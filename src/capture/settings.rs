@@ -4,6 +4,7 @@
 //! (docs/studies/real_settings.md), and their checks.
 
 use crate::error::{Error, Result};
+use crate::scene::Camera;
 use serde::{Deserialize, Serialize};
 
 /// How the rendered image arises from the density.
@@ -246,6 +247,13 @@ pub struct FitSettings {
     /// which scored best on the settings study's frames (0.8, 1.5 and 2.2
     /// lost 0.2-2.9 dB on the scoring camera, every model).
     pub gamma: f64,
+    /// Fit each level coarser than the finest on images downsampled twice
+    /// as far as the next level's (area averaging; the finest level's at
+    /// 1/`factor`), so that a voxel spans about as many pixels on every
+    /// level: the coarse levels, which hand the finest one its start, then
+    /// render a quarter of the pixels per level down. Never coarser than
+    /// [`MIN_PYRAMID_PIXELS`] along an image's shorter side.
+    pub image_pyramid: bool,
     /// Adam updates of the paper's density model before the per-voxel
     /// fit: a 64-d latent and a small decoder, fitted from scratch, whose
     /// output is the density on a cube of `resolution` voxels a side around
@@ -332,6 +340,7 @@ impl Default for FitSettings {
             black_level: false,
             ambient: true,
             gamma: 1.0,
+            image_pyramid: false,
             decoder: 0,
             prior: 0,
             prior_stretched: false,
@@ -340,11 +349,28 @@ impl Default for FitSettings {
     }
 }
 
+/// The fewest pixels along an image's shorter side that a level of
+/// [`FitSettings::image_pyramid`] fits (a frame of ScalarFlow's at 1/8 is
+/// 135 pixels across; its coarsest level, at 1/32, 33).
+pub const MIN_PYRAMID_PIXELS: usize = 24;
+
 impl FitSettings {
     /// Whether the training cameras are aligned once for every frame, by a
     /// rig ([`FitSettings::shared_alignment`]).
     pub fn aligns_once(&self) -> bool {
         self.align && self.shared_alignment
+    }
+
+    /// How many times coarser than the working resolution the images of
+    /// `level` (of [`FitSettings::updates`], coarsest first) are, for
+    /// `cameras` at the working resolution: 1 without `image_pyramid`.
+    pub fn image_scale(&self, level: usize, cameras: &[Camera]) -> usize {
+        let below_finest = self.updates.len().saturating_sub(1 + level);
+        if !self.image_pyramid || below_finest == 0 {
+            return 1;
+        }
+        let shortest = cameras.iter().map(|c| c.width.min(c.height)).min().unwrap_or(0);
+        (0..=below_finest).rev().map(|k| 1 << k).find(|&s| shortest / s >= MIN_PYRAMID_PIXELS).unwrap_or(1)
     }
 
     /// These settings with the density fitted per voxel from the even start
@@ -591,6 +617,7 @@ mod tests {
                 n if n.starts_with("gamma_") => settings.gamma.to_string() == n["gamma_".len()..],
                 n if n.starts_with("decoder_") => settings.decoder.to_string() == n["decoder_".len()..],
                 "prior_stretched" => settings.prior_stretched,
+                "image_pyramid" => settings.image_pyramid,
                 n if n.starts_with("prior_") => settings.prior.to_string() == n["prior_".len()..],
                 _ => false,
             };
