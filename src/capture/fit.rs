@@ -843,6 +843,75 @@ mod tests {
         assert_eq!(held.offsets, corrections(&second).apply(&cameras, 4).unwrap().1);
     }
 
+    /// With the image pyramid a coarse stage aligns the cameras on images
+    /// at half the working resolution: a photograph one pixel off there is
+    /// two pixels off at the working resolution, where the cameras move.
+    #[test]
+    fn a_coarse_stage_moves_the_cameras_in_working_pixels() {
+        let (cameras, _) = ball_views(64, 12.0);
+        let blob = |dx: f64| Image {
+            width: 32,
+            height: 32,
+            data: (0..32 * 32)
+                .map(|i| {
+                    let (x, y) = ((i % 32) as f64 - 15.5 - dx, (i / 32) as f64 - 15.5);
+                    (-(x * x + y * y) / 18.0).exp()
+                })
+                .collect(),
+        };
+        let rendered = vec![blob(0.0); 3];
+        let photos = vec![blob(1.0), blob(0.0), blob(0.0)];
+        let coarse: Vec<Camera> = cameras.iter().map(|c| at_scale(c, 2)).collect();
+        let mut working = cameras.to_vec();
+        let (mut offsets, mut zooms, mut rolls) = (vec![[0.0; 2]; 3], vec![1.0; 3], vec![0.0; 3]);
+        let moves = Moves { offsets: &mut offsets, zooms: &mut zooms, rolls: &mut rolls };
+        let seen = Seen { cameras: &coarse, rendered: &rendered, photos: &photos, scale: 2 };
+        align_cameras(&mut working, moves, Free { zoom: false, roll: false }, seen);
+        // Camera 0 against the other two: one coarse pixel, two working ones.
+        let apart = offsets[0][0] - offsets[1][0];
+        assert!((apart.abs() - 2.0).abs() < 0.2, "{offsets:?}");
+        assert!((offsets[1][0] - offsets[2][0]).abs() < 1e-9 && offsets.iter().all(|o| o[1].abs() < 0.05));
+        let moved = working[0].intrinsics()[2] - cameras[0].intrinsics()[2];
+        assert!((moved - offsets[0][0]).abs() < 1e-9, "the camera moved {moved}, its total {}", offsets[0][0]);
+        assert_eq!(working[0].width, 64, "the working camera was downsampled");
+    }
+
+    /// With the image pyramid a fit of three views of a ball runs its
+    /// coarse levels on coarser images, still lowers the error, and ends
+    /// with its cameras at the working resolution.
+    #[test]
+    fn a_fit_on_the_image_pyramid_fits_a_ball() {
+        let (cameras, images) = ball_views(64, 16.0);
+        let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+        let run = |image_pyramid: bool| {
+            let settings = FitSettings {
+                model: ImageModel::EmissionAbsorption,
+                factor: 4,
+                resolution: 16,
+                updates: vec![10, 10, 20],
+                gains: false,
+                shared_alignment: false,
+                threshold: 0.0,
+                image_pyramid,
+                ..FitSettings::default()
+            };
+            fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap()
+        };
+        let (flat, pyramid) = (run(false), run(true));
+        assert_ne!(flat.log[0].image_mse, pyramid.log[0].image_mse, "the pyramid changed nothing");
+        let first = pyramid.log[0].image_mse;
+        let last = pyramid.log.last().unwrap().image_mse;
+        assert!(last < first / 2.0, "the images' error fell from {first} to only {last}");
+        assert!(pyramid.scene.cameras.iter().all(|c| (c.width, c.height) == (64, 64)));
+        assert!(
+            pyramid.offsets.iter().all(|o| o.iter().all(|v| v.is_finite() && v.abs() < 3.0)),
+            "{:?}",
+            pyramid.offsets
+        );
+        // The finest level works at the same resolution either way: its errors are comparable.
+        assert!(last < 2.0 * flat.log.last().unwrap().image_mse, "{last} against {:?}", flat.log.last());
+    }
+
     /// A box longer along y (a decoder's cube holds voxels outside it).
     const TALL_BOX: (Vec3, Vec3) = (Vec3::new(-0.4, -0.5, -0.4), Vec3::new(0.4, 0.5, 0.4));
 

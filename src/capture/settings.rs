@@ -252,7 +252,10 @@ pub struct FitSettings {
     /// 1/`factor`), so that a voxel spans about as many pixels on every
     /// level: the coarse levels, which hand the finest one its start, then
     /// render a quarter of the pixels per level down. Never coarser than
-    /// [`MIN_PYRAMID_PIXELS`] along an image's shorter side.
+    /// [`MIN_PYRAMID_PIXELS`] along an image's shorter side. On by default:
+    /// on the settings study's frames both multiple scattering and
+    /// emission-absorption scored 0.02 dB lower on the scoring camera, at
+    /// 36 % fewer seconds a frame (the rig's 35 % fewer).
     pub image_pyramid: bool,
     /// Adam updates of the paper's density model before the per-voxel
     /// fit: a 64-d latent and a small decoder, fitted from scratch, whose
@@ -340,7 +343,7 @@ impl Default for FitSettings {
             black_level: false,
             ambient: true,
             gamma: 1.0,
-            image_pyramid: false,
+            image_pyramid: true,
             decoder: 0,
             prior: 0,
             prior_stretched: false,
@@ -544,6 +547,29 @@ mod tests {
     }
 
     #[test]
+    fn the_image_pyramid_halves_each_coarser_level_down_to_its_smallest_images() {
+        let camera = |width, height| Camera {
+            position: crate::math::Vec3::new(0.0, 0.0, 2.0),
+            look_at: crate::math::Vec3::zeros(),
+            up: crate::math::Vec3::y(),
+            lens: crate::scene::Lens::FovY(40.0),
+            width,
+            height,
+        };
+        // ScalarFlow's frames at 1/8: 135 x 240.
+        let working = [camera(135, 240), camera(135, 240)];
+        let on = FitSettings { image_pyramid: true, ..FitSettings::default() };
+        assert_eq!((0..3).map(|l| on.image_scale(l, &working)).collect::<Vec<_>>(), [4, 2, 1]);
+        let off = FitSettings { image_pyramid: false, ..on.clone() };
+        assert!((0..3).all(|l| off.image_scale(l, &working) == 1));
+        // 60 pixels across: 30 at 1/2, not 15 at 1/4.
+        let small = [camera(60, 80), camera(135, 240)];
+        assert_eq!((0..3).map(|l| on.image_scale(l, &small)).collect::<Vec<_>>(), [2, 2, 1]);
+        let two_levels = FitSettings { updates: vec![40, 80], ..on };
+        assert_eq!((0..2).map(|l| two_levels.image_scale(l, &working)).collect::<Vec<_>>(), [2, 1]);
+    }
+
+    #[test]
     fn rig_rounds_outside_1_to_10_are_refused() {
         for rounds in [0, 11] {
             let err = FitSettings { rig_rounds: rounds, ..FitSettings::default() }.validate().unwrap_err().to_string();
@@ -618,6 +644,7 @@ mod tests {
                 n if n.starts_with("decoder_") => settings.decoder.to_string() == n["decoder_".len()..],
                 "prior_stretched" => settings.prior_stretched,
                 "image_pyramid" => settings.image_pyramid,
+                "no_image_pyramid" => !settings.image_pyramid,
                 n if n.starts_with("prior_") => settings.prior.to_string() == n["prior_".len()..],
                 _ => false,
             };
