@@ -385,7 +385,7 @@ impl<'a> FrameFit<'a> {
             return;
         }
         self.scale = scale;
-        self.scene.cameras = self.working.iter().map(|c| at_scale(c, scale)).collect();
+        self.scene.cameras = self.stage_cameras();
         self.photographs = self.working_photographs.iter().map(|p| p.downsample(scale)).collect();
         self.images = over_response(&self.photographs, &self.gains, &self.blacks);
         if self.last.is_some() {
@@ -393,6 +393,11 @@ impl<'a> FrameFit<'a> {
             self.renders += 1;
             self.last = Some(render_photon(&self.scene).images);
         }
+    }
+
+    /// The working cameras at this stage's scale.
+    fn stage_cameras(&self) -> Vec<Camera> {
+        self.working.iter().map(|c| at_scale(c, self.scale)).collect()
     }
 
     /// A stage's grid and its visual hull, carved through the cameras as they
@@ -459,7 +464,7 @@ impl<'a> FrameFit<'a> {
             let moves = Moves { offsets: &mut self.offsets, zooms: &mut self.zooms, rolls: &mut self.rolls };
             let seen = Seen { cameras: &self.scene.cameras, rendered, photos: &self.images, scale: self.scale };
             align_cameras(&mut self.working, moves, free, seen);
-            self.scene.cameras = self.working.iter().map(|c| at_scale(c, self.scale)).collect();
+            self.scene.cameras = self.stage_cameras();
         }
         let (targets, basis) = self.refit_lighting(stage > 0)?;
         if settings.lights > 0 && stage > 0 && settings.model.lit() {

@@ -66,6 +66,7 @@ pub fn reference(scene: &Scene, plume_seed: u64, spp: u32, dir: &Path) -> Result
     let seconds = start.elapsed().as_secs_f64();
     // What the cache holds is float32: a fresh run uses the same rounded
     // images a later run reads back, so both measure the same errors.
+    let as_f32 = |im: &Image| im.map(|v| v as f32 as f64);
     let stored = Reference {
         radiance: r.radiance.iter().map(as_f32).collect(),
         std_err: r.std_err.iter().map(as_f32).collect(),
@@ -80,11 +81,6 @@ pub fn reference(scene: &Scene, plume_seed: u64, spp: u32, dir: &Path) -> Result
         &json!({"key": wanted, "seconds": seconds, "samples": r.samples, "block_noise": noise, "git": git_revision()}),
     )?;
     Ok(stored)
-}
-
-/// `image` rounded to float32, as the cache stores it.
-fn as_f32(image: &Image) -> Image {
-    Image { data: image.data.iter().map(|&v| v as f32 as f64).collect(), ..image.clone() }
 }
 
 #[cfg(test)]
