@@ -314,6 +314,7 @@ impl<'a> FrameFit<'a> {
                 photons: if settings.model == ImageModel::Multiple { settings.photons } else { 0 },
                 spp: settings.spp,
                 seed: settings.seed,
+                shadows: settings.shadows,
                 ..RenderSettings::default()
             },
         };

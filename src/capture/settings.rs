@@ -4,7 +4,7 @@
 //! (docs/studies/real_settings.md), and their checks.
 
 use crate::error::{Error, Result};
-use crate::scene::Camera;
+use crate::scene::{Camera, Shadows};
 use serde::{Deserialize, Serialize};
 
 /// How the rendered image arises from the density.
@@ -257,6 +257,14 @@ pub struct FitSettings {
     /// emission-absorption scored 0.02 dB lower on the scoring camera, at
     /// 36 % fewer seconds a frame (the rig's 35 % fewer).
     pub image_pyramid: bool,
+    /// How the fit's renders find a light's transmittance from a camera
+    /// ray ([`Shadows`]). Under `auto` a render marches a shadow ray from
+    /// every sample once the densest voxel's optical depth passes 1, and
+    /// the real clip's densest voxels hover about 1 during a fit: its
+    /// renders then switch back and forth between two estimators, the
+    /// marched one up to nine times as dear in the reverse pass. `grid`
+    /// keeps one estimator for the whole fit.
+    pub shadows: Shadows,
     /// Adam updates of the paper's density model before the per-voxel
     /// fit: a 64-d latent and a small decoder, fitted from scratch, whose
     /// output is the density on a cube of `resolution` voxels a side around
@@ -344,6 +352,7 @@ impl Default for FitSettings {
             ambient: true,
             gamma: 1.0,
             image_pyramid: true,
+            shadows: Shadows::Auto,
             decoder: 0,
             prior: 0,
             prior_stretched: false,
@@ -645,6 +654,8 @@ mod tests {
                 "prior_stretched" => settings.prior_stretched,
                 "image_pyramid" => settings.image_pyramid,
                 "no_image_pyramid" => !settings.image_pyramid,
+                "shadows_grid" => settings.shadows == Shadows::Grid,
+                "shadows_auto" => settings.shadows == Shadows::Auto,
                 n if n.starts_with("prior_") => settings.prior.to_string() == n["prior_".len()..],
                 _ => false,
             };
