@@ -12,7 +12,8 @@
 //!   single scattering alone (the only order it enters) and for orders 1-3,
 //!   against references of the same orders; and blurred plumes (the
 //!   built-in one blurred: an eighth and a quarter of the box) seen by all
-//!   five cameras;
+//!   five cameras; and the built-in plume with its densest voxel (or 8)
+//!   made twice too deep for the grids, where `auto` marches near them;
 //! - `blurred.csv`: the blurred plumes' stage times at the defaults;
 //! - `summary.md`, `manifest.json`;
 //! - `reference_<res>/`, `reference_blur<blur>_<res>/`: the reference
@@ -32,7 +33,8 @@ use dualphoton::eval::scenes::blurred_plume;
 use dualphoton::eval::sweep::{error, median_of, photon_sweep, shadow_comparison, timed, ERROR_BLOCK};
 use dualphoton::experiment::{self, Run};
 use dualphoton::io::plot::Series;
-use dualphoton::scene::rig;
+use dualphoton::scene::{rig, GRID_MAX_DEPTH};
+use dualphoton::volume::Grid;
 use rows::{BlurredRow, ShadowRow, SweepRow, Tables, TimingRow};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -68,6 +70,11 @@ struct Args {
     /// Samples per pixel of the blurred plumes' references.
     #[arg(long, default_value_t = 4096)]
     thick_ref_spp: u32,
+    /// At `--thick-res`, the built-in plume with this many of its densest
+    /// voxels made twice too deep for the light-depth grids, each a case
+    /// of the shadows' comparison.
+    #[arg(long, value_delimiter = ',', default_value = "1,8")]
+    thick_voxels: Vec<usize>,
     /// Output directory.
     #[arg(long, default_value = "results/bench_render")]
     out: PathBuf,
@@ -125,6 +132,7 @@ fn run(mut args: Args) -> Result<()> {
     }
     if args.thick_res > 0 {
         measure_blurred(&args, &mut tables)?;
+        measure_thick_voxels(&args, &mut tables)?;
     }
     write::blurred_table(&mut summary, &tables.blurred);
     write::shadows_table(&mut summary, &tables.shadows);
@@ -279,4 +287,35 @@ fn measure_blurred(args: &Args, tables: &mut Tables) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The built-in plume at `--thick-res` with a few of its densest voxels
+/// made twice too deep for the light-depth grids (`GRID_MAX_DEPTH`): the
+/// lights' transmittance against its reference and against marched shadow
+/// rays, where `auto` shadows march near those voxels only.
+fn measure_thick_voxels(args: &Args, tables: &mut Tables) -> Result<()> {
+    let res = args.thick_res;
+    for &n in &args.thick_voxels {
+        let scene = rig::paper_scene(thickened(plume(res, SEED), n, res), res);
+        let name = format!("plume, {n} densest voxels 2 deep");
+        eprintln!("{name} {res}^3: reference at {} spp", args.thick_ref_spp);
+        let dir = args.out.join(format!("reference_thick{n}_{res}"));
+        let rf = reference::reference(&scene, SEED, args.thick_ref_spp, &dir)?;
+        for point in shadow_comparison(&scene, &rf, args.repeats) {
+            tables.shadows.push(ShadowRow::new(name.clone(), res, scene.cameras.len(), "1-3", point));
+        }
+    }
+    Ok(())
+}
+
+/// `density` with its `n` densest voxels raised to an optical depth of
+/// twice [`GRID_MAX_DEPTH`] across a voxel in the paper scene at `res`.
+fn thickened(mut density: Grid<f64>, n: usize, res: usize) -> Grid<f64> {
+    let depth_per_unit = rig::paper_scene(density.clone(), res).medium.sigma_t_scale * density.voxel_size().max();
+    let mut order: Vec<usize> = (0..density.len()).collect();
+    order.sort_by(|&a, &b| density.data[b].total_cmp(&density.data[a]).then(a.cmp(&b)));
+    for &v in order.iter().take(n) {
+        density.data[v] = 2.0 * GRID_MAX_DEPTH / depth_per_unit;
+    }
+    density
 }

@@ -49,11 +49,12 @@ pub struct ShadowRow {
     pub grids_and_camera_s: f64,
     pub block_rel_rmse: f64,
     pub mean_rel_diff: f64,
+    pub vs_marched: f64,
 }
 
 impl ShadowRow {
     pub fn new(scene: String, res: usize, cameras: usize, orders: &'static str, p: ShadowPoint) -> Self {
-        let ShadowPoint { shadows, cell, seconds, camera_seconds, block_rel_rmse, mean_rel_diff } = p;
+        let ShadowPoint { shadows, cell, seconds, camera_seconds, block_rel_rmse, mean_rel_diff, vs_marched } = p;
         ShadowRow {
             scene,
             res,
@@ -65,6 +66,7 @@ impl ShadowRow {
             grids_and_camera_s: camera_seconds,
             block_rel_rmse,
             mean_rel_diff,
+            vs_marched,
         }
     }
 }

@@ -1,6 +1,7 @@
 //! The camera-ray integral `L = ∫ T(0,t) sigma_s(x_t) L_s(x_t, -w) dt`
 //! (docs/DESIGN.md §2) by ray marching: per step, single scattering towards every
-//! light, its transmittance read from the light-depth grids (or marched),
+//! light, its transmittance read from the light-depth grids (or marched,
+//! everywhere or near voxels too deep for the grids),
 //! the medium's emission, and the photon estimate of the higher orders read
 //! from a grid. Generic
 //! over `R: Real`: the density carries derivatives, the step placement does not.
@@ -8,6 +9,7 @@
 use super::light_depth::Depths;
 use super::march::Marcher;
 use super::splat::Estimate;
+use super::thick::ThickVoxels;
 use crate::ad::Real;
 use crate::math::Ray;
 use crate::rng::{Purpose, Rng};
@@ -32,6 +34,9 @@ pub struct CameraRays<'a, R: Real> {
     /// Per light, the optical depth to it on a grid; `None`: a shadow ray is
     /// marched from every sample.
     pub depths: Option<&'a Depths<R>>,
+    /// Where samples march their shadow rays although `depths` is given:
+    /// near voxels too deep for the grids (`auto` shadows).
+    pub marched_near: Option<&'a ThickVoxels>,
     /// Jittered samples per pixel.
     pub spp: u32,
     /// Seed of the pixel streams.
@@ -118,6 +123,7 @@ impl<R: Real> CameraRays<'_, R> {
             }
             if !sigma_t.is_exact_zero() && self.medium.albedo > 0.0 {
                 let mut single = R::cst(0.0);
+                let depths = self.depths.filter(|_| !self.marched_near.is_some_and(|t| t.near(&x)));
                 for (l, light) in self.lights.iter().enumerate().filter(|(_, l)| l.intensity > 0.0) {
                     let to_light = light.position - x;
                     let dist2 = to_light.norm_squared();
@@ -125,7 +131,7 @@ impl<R: Real> CameraRays<'_, R> {
                         continue; // A sample exactly on a point light: a set of measure zero.
                     }
                     let mu = (-to_light / dist2.sqrt()).dot(&w_out);
-                    let t = match self.depths.and_then(|d| d[l].as_ref()) {
+                    let t = match depths.and_then(|d| d[l].as_ref()) {
                         Some(depth) => (depth.at(&x) * -1.0).exp(),
                         None => self.marcher.transmittance(self.density, scale, &x, &light.position, shadow_jitter),
                     };

@@ -10,10 +10,11 @@ use super::light_depth::{Depths, LightDepth};
 use super::march::{Marcher, Step};
 use super::photons::{emitters, Emitter, Flights, Photon, Tracer};
 use super::splat::{Estimate, Kernel, SplatGeometry};
+use super::thick::ThickVoxels;
 use crate::ad::Real;
 use crate::image::Image;
 use crate::par;
-use crate::scene::{Camera, Scene};
+use crate::scene::{Camera, Scene, Shadows};
 use crate::volume::majorant::MAJORANT_BLOCK;
 use crate::volume::{Grid, Majorant};
 use rayon::prelude::*;
@@ -54,6 +55,9 @@ pub struct Frozen<'a> {
     kernel: Kernel,
     /// The light-depth grids' nodes (`None`: marched shadow rays).
     light_depth: Option<LightDepth>,
+    /// `auto` shadows: the voxels too deep for the grids, near which
+    /// samples march their shadow rays (`None`: none, or not `auto`).
+    thick: Option<ThickVoxels>,
     /// The light-depth grids of the primal density, kept for reverse mode
     /// (which would otherwise march them again; `None`: marched shadow rays).
     depths: Option<Depths<f64>>,
@@ -110,9 +114,9 @@ impl<'a> Frozen<'a> {
         timings.gather = t.elapsed().as_secs_f64();
         let first_pixel = first_pixels(&scene.cameras);
         let scale = scene.medium.sigma_t_scale;
-        let light_depth = settings
-            .shadow_cell_for(density, scale)
-            .map(|cell| LightDepth::new(&marcher, density, cell, &scene.lights, scale, settings.seed));
+        let cell = settings.shadow_cell_for(density, scale);
+        let light_depth = cell.map(|c| LightDepth::new(&marcher, density, c, &scene.lights, scale, settings.seed));
+        let thick = cell.filter(|_| settings.shadows == Shadows::Auto).and_then(|c| ThickVoxels::new(density, scale, c));
         let mut frozen = Frozen {
             scene,
             marcher,
@@ -125,6 +129,7 @@ impl<'a> Frozen<'a> {
             geometry,
             kernel,
             light_depth,
+            thick,
             depths: None,
             first_pixel,
             images: vec![],
@@ -178,6 +183,7 @@ impl<'a> Frozen<'a> {
             lights: &self.scene.lights,
             marcher: &self.marcher,
             depths,
+            marched_near: self.thick.as_ref(),
             spp: self.scene.render.spp,
             seed: self.scene.render.seed,
         }

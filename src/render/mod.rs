@@ -10,6 +10,7 @@ pub mod march;
 pub mod photon;
 pub mod photons;
 pub mod splat;
+pub mod thick;
 
 pub use photon::{render_photon, PhotonRender};
 pub mod emission;

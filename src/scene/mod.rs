@@ -79,9 +79,10 @@ pub struct RenderSettings {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Shadows {
-    /// `grid` where the densest voxel's optical depth over one light-depth
-    /// node spacing is at most 1 (`GRID_MAX_DEPTH`: the interpolation bias
-    /// is then small), else `marched`.
+    /// `grid`, but camera-ray samples near a voxel whose optical depth over
+    /// one light-depth node spacing exceeds 1 (`GRID_MAX_DEPTH`: beyond it
+    /// the interpolation bias is large) march their shadow rays
+    /// ([`crate::render::thick`]).
     #[default]
     Auto,
     /// Per light, the optical depth at the nodes of a grid, marched once per
@@ -92,8 +93,8 @@ pub enum Shadows {
     Marched,
 }
 
-/// Largest optical depth across one light-depth node spacing (at the
-/// densest voxel) for which `auto` shadows use the grid. Interpolating the
+/// Largest optical depth across one light-depth node spacing of a voxel
+/// whose neighbourhood `auto` shadows read from the grid. Interpolating the
 /// depth linearly across a density edge misses it by up to a quarter of
 /// this: transmittance off by up to 22 % in a shell one spacing thick at
 /// the edges of the densest smoke. What that does to whole images is
@@ -146,7 +147,9 @@ impl RenderSettings {
     /// about 64 nodes a side (results/bench_render: at 128^3 a node every 2
     /// voxels is as accurate as every voxel, at a sixth of the cost); under
     /// `auto`, refined until the densest voxel's optical depth across a
-    /// spacing is at most [`GRID_MAX_DEPTH`], or marched if even one voxel is too much.
+    /// spacing is at most [`GRID_MAX_DEPTH`], down to one voxel (where
+    /// voxels stay too deep, samples near them march:
+    /// [`crate::render::thick`]).
     pub fn shadow_cell_for(&self, density: &Grid<f64>, sigma_t_scale: f64) -> Option<usize> {
         let coarse = (density.shape.iter().max().unwrap() / 64).max(1);
         let cell = self.shadow_cell.map_or(coarse, |c| c.max(1) as usize);
@@ -156,7 +159,7 @@ impl RenderSettings {
             Shadows::Auto => {
                 let depth_per_voxel = density.max_value() * sigma_t_scale * density.voxel_size().max();
                 let fits = |c: usize| depth_per_voxel * c as f64 <= GRID_MAX_DEPTH;
-                (1..=cell).rev().find(|&c| fits(c))
+                Some((1..=cell).rev().find(|&c| fits(c)).unwrap_or(1))
             }
         }
     }
