@@ -168,3 +168,42 @@ fn emission_without_lights_is_emission_times_one_minus_transmittance() {
         assert!((path - exact).abs() < 5.0 * se + 1e-12, "rho {rho}: path tracer {path} vs {exact} (se {se})");
     }
 }
+
+/// `auto` shadows read the light-depth grids except near voxels too deep
+/// for them (optical depth over 1 across a voxel): where every voxel is that
+/// deep they are marched shadow rays, bit for bit; where none is, the grids,
+/// bit for bit; on the blob, whose dense lump alone is too deep, neither,
+/// and nearer the marched shadow rays than the grids are.
+#[test]
+fn auto_shadows_march_only_near_thick_voxels() {
+    use dualphoton::eval::scenes::{homogeneous, two_light_blob};
+    use dualphoton::render::thick::ThickVoxels;
+    use dualphoton::scene::{Scene, Shadows};
+    let images = |s: &Scene, shadows: Shadows| {
+        let mut s = s.clone();
+        s.render.shadows = shadows;
+        render_photon(&s).images.into_iter().flat_map(|i| i.data).collect::<Vec<f64>>()
+    };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let thick = |s: &Scene| ThickVoxels::new(&s.density, s.medium.sigma_t_scale, 1).map_or(0, |t| t.count());
+    // Single scattering: the only order the shadows enter.
+    let blob = two_light_blob(10, 0.6, 1, 8);
+    // The medium's extinction is 20 per unit density on voxels of 0.1: 2 per unit density per voxel.
+    let mut everywhere = blob.clone();
+    everywhere.density = homogeneous(10, 0.75);
+    let mut thin = blob.clone();
+    thin.density.data.iter_mut().for_each(|v| *v *= 0.5);
+    assert_eq!((thick(&everywhere), thick(&thin)), (1000, 0));
+    assert_eq!(bits(&images(&everywhere, Shadows::Auto)), bits(&images(&everywhere, Shadows::Marched)));
+    assert_eq!(bits(&images(&thin, Shadows::Auto)), bits(&images(&thin, Shadows::Grid)));
+
+    let lump = thick(&blob);
+    assert!((1..=10).contains(&lump), "the blob's dense lump: {lump} thick voxels");
+    let (auto, grid, marched) =
+        (images(&blob, Shadows::Auto), images(&blob, Shadows::Grid), images(&blob, Shadows::Marched));
+    let distance = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+    let (to_marched, grid_to_marched) = (distance(&auto, &marched), distance(&grid, &marched));
+    eprintln!("the blob: auto {to_marched:e} from marched, the grids {grid_to_marched:e}");
+    assert!(distance(&auto, &grid) > 0.0 && to_marched > 0.0, "auto is neither the grids nor marched");
+    assert!(to_marched < grid_to_marched, "auto {to_marched:e} from marched, the grids {grid_to_marched:e}");
+}

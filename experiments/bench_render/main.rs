@@ -297,7 +297,8 @@ fn measure_thick_voxels(args: &Args, tables: &mut Tables) -> Result<()> {
     let res = args.thick_res;
     for &n in &args.thick_voxels {
         let scene = rig::paper_scene(thickened(plume(res, SEED), n, res), res);
-        let name = format!("plume, {n} densest voxels 2 deep");
+        let name =
+            if n == 1 { "plume, densest voxel 2 deep".into() } else { format!("plume, {n} densest voxels 2 deep") };
         eprintln!("{name} {res}^3: reference at {} spp", args.thick_ref_spp);
         let dir = args.out.join(format!("reference_thick{n}_{res}"));
         let rf = reference::reference(&scene, SEED, args.thick_ref_spp, &dir)?;

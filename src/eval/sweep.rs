@@ -136,7 +136,13 @@ pub fn shadow_comparison(scene: &Scene, reference: &Reference, repeats: usize) -
             let cell = s.render.shadow_cell_for(&s.density, scale);
             let name = match (shadows, cell.and_then(|c| ThickVoxels::new(&s.density, scale, c))) {
                 (Shadows::Auto, None) => "auto: grid".to_string(),
-                (Shadows::Auto, Some(t)) => format!("auto: grid, marched near {} thick voxels", t.count()),
+                (Shadows::Auto, Some(t)) => {
+                    format!(
+                        "auto: grid, marched near {} thick voxel{}",
+                        t.count(),
+                        if t.count() == 1 { "" } else { "s" }
+                    )
+                }
                 _ => name.to_string(),
             };
             let vs_marched = marched.as_ref().map_or(0.0, |m| {

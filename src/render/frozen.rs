@@ -116,7 +116,8 @@ impl<'a> Frozen<'a> {
         let scale = scene.medium.sigma_t_scale;
         let cell = settings.shadow_cell_for(density, scale);
         let light_depth = cell.map(|c| LightDepth::new(&marcher, density, c, &scene.lights, scale, settings.seed));
-        let thick = cell.filter(|_| settings.shadows == Shadows::Auto).and_then(|c| ThickVoxels::new(density, scale, c));
+        let thick =
+            cell.filter(|_| settings.shadows == Shadows::Auto).and_then(|c| ThickVoxels::new(density, scale, c));
         let mut frozen = Frozen {
             scene,
             marcher,
