@@ -97,9 +97,9 @@ mod tests {
         for cell in [1, 2] {
             let t = ThickVoxels::new(&grid(8, &[(4, 2, 6)]), 1.0, cell).unwrap();
             assert_eq!(t.count(), 1);
-            for k in 0..8 {
-                for j in 0..8 {
-                    for i in 0..8 {
+            for k in 0..8usize {
+                for j in 0..8usize {
+                    for i in 0..8usize {
                         let want = k.abs_diff(4) <= cell && j.abs_diff(2) <= cell && i.abs_diff(6) <= cell;
                         let p = Vec3::new(i as f64 + 0.3, j as f64 + 0.7, k as f64 + 0.5);
                         assert_eq!(t.near(&p), want, "cell {cell}, voxel ({k}, {j}, {i})");
