@@ -258,15 +258,15 @@ pub struct FitSettings {
     /// 36 % fewer seconds a frame (the rig's 35 % fewer).
     pub image_pyramid: bool,
     /// How the fit's renders find a light's transmittance from a camera
-    /// ray ([`Shadows`]). Under `auto` a render marches a shadow ray from
-    /// every sample once the densest voxel's optical depth passes 1, and
-    /// the real clip's densest voxels hover about 1 during a fit: its
-    /// renders then switch back and forth between two estimators, the
-    /// marched one up to nine times as dear in the reverse pass. `grid`
-    /// keeps one estimator for the whole fit. `auto` by default: on the
-    /// settings study's frames `grid` scored the same to 0.001 dB but
-    /// saved only 4 % of multiple scattering's seconds a frame and 11 % of
-    /// the rig's, short of the 15 % its rule asked.
+    /// ray ([`Shadows`]). `auto` (the default) reads a grid of optical
+    /// depths and marches shadow rays only near voxels too deep for it;
+    /// `grid` reads the grid everywhere. Under the renderer's earlier
+    /// `auto`, which marched every shadow ray of a render once one voxel
+    /// passed an optical depth of 1 (the real clip's densest voxels hover
+    /// about 1 during a fit), `grid` scored the same to 0.001 dB on the
+    /// settings study's frames but saved only 4 % of multiple scattering's
+    /// seconds a frame and 11 % of the rig's, short of the 15 % its rule
+    /// asked.
     pub shadows: Shadows,
     /// Adam updates of the paper's density model before the per-voxel
     /// fit: a 64-d latent and a small decoder, fitted from scratch, whose
