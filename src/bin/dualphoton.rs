@@ -101,8 +101,8 @@ struct RenderArgs {
     /// Samples per pixel of the path tracer (default: render.path_spp, else 256).
     #[arg(long)]
     path_spp: Option<u32>,
-    /// The lights' transmittance: auto (light-depth grids unless the medium is too thick for them),
-    /// grid, or marched (a shadow ray from every sample: exact, slower; for checks).
+    /// The lights' transmittance: auto (light-depth grids, with shadow rays marched near voxels too
+    /// thick for them), grid, or marched (a shadow ray from every sample: exact, slower; for checks).
     #[arg(long, value_enum)]
     shadows: Option<Shadows>,
     /// Fixed PNG white point (radiance mapped to full white); default per image.
