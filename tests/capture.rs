@@ -79,6 +79,28 @@ fn a_transforms_json_reads_folders_of_images_of_every_kind() {
     assert!(err.contains("frame 3 is out of range") && err.contains("0..2"), "{err}");
 }
 
+/// Cameras are named by their frames' file or folder, or by its path where
+/// two names would be the same, so that each name picks one camera.
+#[test]
+fn cameras_whose_frames_share_a_name_are_named_by_their_path() {
+    let dir = temp_dir("capture_names");
+    for cam in ["cam0", "cam1"] {
+        std::fs::create_dir_all(dir.join(cam)).unwrap();
+        write_png(&dir.join(cam).join("000060.png"), 6, 4, false, |_, _| 0);
+    }
+    let frame = |file: &str, x: f64| json!({"file_path": file, "transform_matrix": looking_at_origin(x, 2.0)});
+    let names = |frames: Vec<Value>| {
+        let path = dir.join("transforms.json");
+        std::fs::write(&path, json!({"camera_angle_x": 0.8, "frames": frames}).to_string()).unwrap();
+        calibration::load(&path).map(|c| c.views.iter().map(|v| v.name.clone()).collect::<Vec<_>>())
+    };
+    let two = vec![frame("cam0/000060.png", 0.0), frame("cam1/000060.png", 1.0)];
+    assert_eq!(names(two).unwrap(), ["cam0/000060", "cam1/000060"]);
+    assert_eq!(names(vec![frame("cam0", 0.0), frame("cam1/", 1.0)]).unwrap(), ["cam0", "cam1"]);
+    let err = names(vec![frame("cam0", 0.0), frame("cam1", 1.0), frame("cam0/", 2.0)]).unwrap_err().0;
+    assert!(err.contains("cameras 0 and 2") && err.contains("named cam0") && !err.contains('\n'), "{err}");
+}
+
 #[test]
 fn a_bad_capture_is_a_one_line_error_before_any_work() {
     let dir = temp_dir("capture_errors");
@@ -159,10 +181,11 @@ fn video_frames_decode_in_order_through_ffmpeg() {
         .status()
         .unwrap();
     assert!(status.success());
+    std::fs::copy(dir.join("cam.mp4"), dir.join("held.mp4")).unwrap();
     let calib = json!({
         "train_videos": [{"file_name": "cam.mp4", "frame_num": 8, "camera_angle_x": 0.5, "camera_hw": [48, 64],
                           "transform_matrix": looking_at_origin(0.0, 2.0)}],
-        "test_videos": [{"file_name": "cam.mp4", "frame_num": 8, "camera_angle_x": 0.5, "camera_hw": [48, 64],
+        "test_videos": [{"file_name": "held.mp4", "frame_num": 8, "camera_angle_x": 0.5, "camera_hw": [48, 64],
                          "transform_matrix": looking_at_origin(2.0, 0.0)}],
         "voxel_matrix": [[1, 0, 0, -0.5], [0, 1, 0, -0.5], [0, 0, 1, -0.5], [0, 0, 0, 1]],
         "voxel_scale": [1.0, 1.0, 1.0],

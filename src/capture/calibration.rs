@@ -121,9 +121,10 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
             } else {
                 Frames::Video { path: video.clone(), count }
             };
-            views.push(View { name: stem(&video), camera, frames, held_out });
+            views.push(View { name: file, camera, frames, held_out });
         }
     }
+    name_views(&mut views)?;
     let smoke_box = match (top.get("voxel_matrix"), top.get("voxel_scale")) {
         (Some(_), Some(_)) => {
             Some(smoke_box(&top.required::<Vec<[f64; 4]>>("voxel_matrix")?, &top.required("voxel_scale")?)?)
@@ -137,7 +138,8 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
     let mut views = Vec::new();
     for (path, item) in top.list("frames")? {
         let f = Fields::lenient(item, &path)?;
-        let source = existing(dir, &f.required::<String>("file_path")?, &f.name("file_path"))?;
+        let file: String = f.required("file_path")?;
+        let source = existing(dir, &file, &f.name("file_path"))?;
         let frames = frame_source(&source, &f.name("file_path"))?;
         let pick = |key: &str| inherited::<f64>(&f, top, key);
         let (width, height) = match (inherited(&f, top, "w")?, inherited(&f, top, "h")?) {
@@ -158,8 +160,9 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
         };
         pinhole(&f, top, &path)?;
         let camera = posed(&f, lens, width, height)?;
-        views.push(View { name: stem(&source), camera, frames, held_out: false });
+        views.push(View { name: file, camera, frames, held_out: false });
     }
+    name_views(&mut views)?;
     Ok(Capture { views, smoke_box: None })
 }
 
@@ -305,9 +308,28 @@ fn image_size(frames: &Frames) -> Option<(usize, usize)> {
     }
 }
 
-/// The file or folder name without its extension.
-fn stem(path: &Path) -> String {
-    path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+/// Names the views, whose `name` holds the frames' path as the calibration
+/// gives it: the file or folder name without its extension (`train02`), or,
+/// where two cameras would share one (`cam0/000060.png`, `cam1/000060.png`),
+/// the path without its extension, so that `experiment_real --held-out` and `--drop` name
+/// one camera each. Two cameras reading the same frames are an error.
+fn name_views(views: &mut [View]) -> Result<()> {
+    let stem = |p: &str| Path::new(p).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let bare = |p: &str| Path::new(p).with_extension("").to_string_lossy().trim_end_matches('/').to_string();
+    let stems: Vec<String> = views.iter().map(|v| stem(&v.name)).collect();
+    let names = if first_repeat(&stems).is_none() { stems } else { views.iter().map(|v| bare(&v.name)).collect() };
+    if let Some((j, i)) = first_repeat(&names) {
+        bail!("cameras {j} and {i} (in file order) would both be named {}: give each its own frames", names[i]);
+    }
+    for (v, n) in views.iter_mut().zip(names) {
+        v.name = n;
+    }
+    Ok(())
+}
+
+/// The first name that repeats an earlier one: (earlier, later) index.
+fn first_repeat(names: &[String]) -> Option<(usize, usize)> {
+    (0..names.len()).find_map(|i| names[..i].iter().position(|n| *n == names[i]).map(|j| (j, i)))
 }
 
 #[cfg(test)]
