@@ -33,7 +33,7 @@ use dualphoton::eval::scenes::blurred_plume;
 use dualphoton::eval::sweep::{error, median_of, photon_sweep, shadow_comparison, timed, ERROR_BLOCK};
 use dualphoton::experiment::{self, Run};
 use dualphoton::io::plot::Series;
-use dualphoton::scene::{rig, GRID_MAX_DEPTH};
+use dualphoton::scene::{rig, Scene, GRID_MAX_DEPTH};
 use dualphoton::volume::Grid;
 use rows::{BlurredRow, ShadowRow, SweepRow, Tables, TimingRow};
 use serde::Serialize;
@@ -279,12 +279,7 @@ fn measure_blurred(args: &Args, tables: &mut Tables) -> Result<()> {
             continue;
         }
         let name = format!("plume blurred by {blur} voxels ({:.0} % occupied)", 100.0 * occupied);
-        eprintln!("{name} {res}^3: reference at {} spp", args.thick_ref_spp);
-        let dir = args.out.join(format!("reference_blur{blur}_{res}"));
-        let rf = reference::reference(&scene, SEED, args.thick_ref_spp, &dir)?;
-        for point in shadow_comparison(&scene, &rf, args.repeats) {
-            tables.shadows.push(ShadowRow::new(name.clone(), res, scene.cameras.len(), "1-3", point));
-        }
+        compare_shadows(args, tables, &scene, &name, &format!("reference_blur{blur}_{res}"))?;
     }
     Ok(())
 }
@@ -299,12 +294,19 @@ fn measure_thick_voxels(args: &Args, tables: &mut Tables) -> Result<()> {
         let scene = rig::paper_scene(thickened(plume(res, SEED), n, res), res);
         let name =
             if n == 1 { "plume, densest voxel 2 deep".into() } else { format!("plume, {n} densest voxels 2 deep") };
-        eprintln!("{name} {res}^3: reference at {} spp", args.thick_ref_spp);
-        let dir = args.out.join(format!("reference_thick{n}_{res}"));
-        let rf = reference::reference(&scene, SEED, args.thick_ref_spp, &dir)?;
-        for point in shadow_comparison(&scene, &rf, args.repeats) {
-            tables.shadows.push(ShadowRow::new(name.clone(), res, scene.cameras.len(), "1-3", point));
-        }
+        compare_shadows(args, tables, &scene, &name, &format!("reference_thick{n}_{res}"))?;
+    }
+    Ok(())
+}
+
+/// `scene`'s shadow estimators against its reference (cached in
+/// `--out`/`reference_dir`) and against marched shadow rays, as rows `name`.
+fn compare_shadows(args: &Args, tables: &mut Tables, scene: &Scene, name: &str, reference_dir: &str) -> Result<()> {
+    let res = args.thick_res;
+    eprintln!("{name} {res}^3: reference at {} spp", args.thick_ref_spp);
+    let rf = reference::reference(scene, SEED, args.thick_ref_spp, &args.out.join(reference_dir))?;
+    for point in shadow_comparison(scene, &rf, args.repeats) {
+        tables.shadows.push(ShadowRow::new(name.to_string(), res, scene.cameras.len(), "1-3", point));
     }
     Ok(())
 }

@@ -29,16 +29,14 @@ impl ThickVoxels {
     /// The thick voxels of `density` (extinction `scale` per unit density)
     /// for light-depth nodes every `cell` voxels; `None` if there are none.
     pub fn new(density: &Grid<f64>, scale: f64, cell: usize) -> Option<Self> {
-        let depth_per_unit = scale * density.voxel_size().max() * cell.max(1) as f64;
-        let thick: Vec<bool> =
-            density.data.iter().map(|&v| v * depth_per_unit > crate::scene::GRID_MAX_DEPTH).collect();
-        let count = thick.iter().filter(|&&t| t).count();
+        let limit = crate::scene::grid_density_limit(density, scale, cell.max(1));
+        let count = density.data.iter().filter(|&&v| v > limit).count();
         if count == 0 {
             return None;
         }
         // A sample's trilinear stencil spans at most `cell` voxels each way:
         // widen the thick voxels by that much, one axis at a time.
-        let mut near = thick;
+        let mut near: Vec<bool> = density.data.iter().map(|&v| v > limit).collect();
         let [nz, ny, nx] = density.shape;
         for (stride, n) in [(1, nx), (nx, ny), (nx * ny, nz)] {
             let from = near.clone();

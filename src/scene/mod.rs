@@ -157,12 +157,19 @@ impl RenderSettings {
             Shadows::Marched => None,
             Shadows::Grid => Some(cell),
             Shadows::Auto => {
-                let depth_per_voxel = density.max_value() * sigma_t_scale * density.voxel_size().max();
-                let fits = |c: usize| depth_per_voxel * c as f64 <= GRID_MAX_DEPTH;
-                Some((1..=cell).rev().find(|&c| fits(c)).unwrap_or(1))
+                let densest = density.max_value();
+                Some((1..=cell).rev().find(|&c| densest <= grid_density_limit(density, sigma_t_scale, c)).unwrap_or(1))
             }
         }
     }
+}
+
+/// The largest density whose optical depth across `cell` voxels of
+/// `density`'s grid (extinction `sigma_t_scale` per unit density) is at
+/// most [`GRID_MAX_DEPTH`]: the one test of what the light-depth grids
+/// interpolate well, for the node spacing and for `auto`'s thick voxels.
+pub fn grid_density_limit(density: &Grid<f64>, sigma_t_scale: f64, cell: usize) -> f64 {
+    GRID_MAX_DEPTH / (sigma_t_scale * density.voxel_size().max() * cell as f64)
 }
 
 /// A complete, validated scene.
