@@ -311,8 +311,8 @@ fn image_size(frames: &Frames) -> Option<(usize, usize)> {
 /// Names the views, whose `name` holds the frames' path as the calibration
 /// gives it: the file or folder name without its extension (`train02`), or,
 /// where two cameras would share one (`cam0/000060.png`, `cam1/000060.png`),
-/// the path without its extension, so that `experiment_real --held-out` and `--drop` name
-/// one camera each. Two cameras reading the same frames are an error.
+/// the path without its extension, so that `experiment_real --held-out`
+/// and `--drop` name one camera each. Names that still repeat are an error.
 fn name_views(views: &mut [View]) -> Result<()> {
     let stem = |p: &str| Path::new(p).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let bare = |p: &str| Path::new(p).with_extension("").to_string_lossy().trim_end_matches('/').to_string();
