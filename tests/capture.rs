@@ -643,10 +643,13 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     let density = npy::read(&out.join("density.npy"), "density.npy").unwrap();
     assert!(density.data.iter().all(|v| v.is_finite() && *v >= 0.0) && density.data.iter().any(|&v| v > 0.0));
     // No test camera: nothing held out to render, both cameras scored as
-    // training, and the rig recorded without one.
+    // training. One frame: its cameras aligned during its fit, no rig.
     assert!(!out.join("held_out.npy").exists());
-    let record: Value = serde_json::from_str(&std::fs::read_to_string(out.join("settings.json")).unwrap()).unwrap();
-    assert!(record["held_out"].is_null() && out.join("rig.json").exists(), "{record}");
+    assert_eq!(
+        (manifest["fit"]["align"].clone(), manifest["fit"]["shared_alignment"].clone()),
+        (json!(true), json!(false))
+    );
+    assert!(!out.join("rig.json").exists() && !out.join("settings.json").exists());
     let quality = std::fs::read_to_string(out.join("fit_quality.csv")).unwrap();
     assert_eq!(quality.lines().filter(|l| l.contains(",training,")).count(), 2, "{quality}");
 }

@@ -80,7 +80,8 @@ fn run(args: Args) -> Result<()> {
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     let roles = args.cameras.roles(&capture)?;
     let held_out = roles.held_out[0];
-    let fit_settings = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
+    let fit_settings =
+        FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?.for_capture(capture.frame_count());
     if let Some(path) = &args.held_out_focal_lengths {
         let k = held_out_zoom(&capture, path, &roles.training, held_out)
             .map_err(|e| Error(format!("--held-out-focal-lengths: {e}")))?;

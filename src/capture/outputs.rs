@@ -111,6 +111,7 @@ pub fn fit_and_write(
     if capture.smoke_box.is_none() {
         return Err(Error("--box: the calibration gives no smoke box; give x0,y0,z0,x1,y1,z1".into()));
     }
+    let settings = &settings.for_capture(capture.frame_count());
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
     let record = RunSettings::of(&capture, &roles, settings)?;

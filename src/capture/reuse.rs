@@ -202,7 +202,10 @@ pub fn earlier_rig(
     base: &FitSettings,
 ) -> Result<Rig> {
     if !base.aligns_once() {
-        return Err(Error("these fit settings align the cameras on each frame: there is no rig to reuse".into()));
+        return Err(Error(
+            "these fit settings (or a capture of one frame) align the cameras on each frame: there is no rig to reuse"
+                .into(),
+        ));
     }
     let (settings, rig) = (dir.join("settings.json"), dir.join("rig.json"));
     if let Some(missing) = [&settings, &rig].into_iter().find(|f| !f.exists()) {
