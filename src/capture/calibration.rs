@@ -89,7 +89,7 @@ pub fn load(path: &Path) -> Result<Capture> {
 }
 
 fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
-    let mut views = Vec::new();
+    let mut found = Vec::new();
     for (key, held_out) in [("train_videos", false), ("test_videos", true)] {
         if key == "test_videos" && top.get(key).is_none() {
             continue;
@@ -121,10 +121,10 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
             } else {
                 Frames::Video { path: video.clone(), count }
             };
-            views.push(View { name: file, camera, frames, held_out });
+            found.push((file, camera, frames, held_out));
         }
     }
-    name_views(&mut views)?;
+    let views = named(found)?;
     let smoke_box = match (top.get("voxel_matrix"), top.get("voxel_scale")) {
         (Some(_), Some(_)) => {
             Some(smoke_box(&top.required::<Vec<[f64; 4]>>("voxel_matrix")?, &top.required("voxel_scale")?)?)
@@ -135,7 +135,7 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
 }
 
 fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
-    let mut views = Vec::new();
+    let mut found = Vec::new();
     for (path, item) in top.list("frames")? {
         let f = Fields::lenient(item, &path)?;
         let file: String = f.required("file_path")?;
@@ -160,10 +160,9 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
         };
         pinhole(&f, top, &path)?;
         let camera = posed(&f, lens, width, height)?;
-        views.push(View { name: file, camera, frames, held_out: false });
+        found.push((file, camera, frames, false));
     }
-    name_views(&mut views)?;
-    Ok(Capture { views, smoke_box: None })
+    Ok(Capture { views: named(found)?, smoke_box: None })
 }
 
 /// The lens models of a `transforms.json` (nerfstudio's `camera_model`)
@@ -308,23 +307,29 @@ fn image_size(frames: &Frames) -> Option<(usize, usize)> {
     }
 }
 
-/// Names the views, whose `name` holds the frames' path as the calibration
-/// gives it: the file or folder name without its extension (`train02`), or,
-/// where two cameras would share one (`cam0/000060.png`, `cam1/000060.png`),
-/// the path without its extension, so that `experiment_real --held-out`
-/// and `--drop` name one camera each. Names that still repeat are an error.
-fn name_views(views: &mut [View]) -> Result<()> {
+/// The views of the cameras `found` (the path of its frames, the camera,
+/// its frames, whether it is held out), each named by [`camera_names`].
+fn named(found: Vec<(String, Camera, Frames, bool)>) -> Result<Vec<View>> {
+    let names = camera_names(&found.iter().map(|(path, ..)| path.as_str()).collect::<Vec<_>>())?;
+    let views = found.into_iter().zip(names);
+    Ok(views.map(|((_, camera, frames, held_out), name)| View { name, camera, frames, held_out }).collect())
+}
+
+/// The cameras' names from the paths of their frames as the calibration
+/// gives them: the file or folder name without its extension (`train02`),
+/// or, where two cameras would share one (`cam0/000060.png`,
+/// `cam1/000060.png`), the path without its extension, so that
+/// `experiment_real --held-out` and `--drop` name one camera each. Names
+/// that still repeat are an error.
+fn camera_names(paths: &[&str]) -> Result<Vec<String>> {
     let stem = |p: &str| Path::new(p).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let bare = |p: &str| Path::new(p).with_extension("").to_string_lossy().trim_end_matches('/').to_string();
-    let stems: Vec<String> = views.iter().map(|v| stem(&v.name)).collect();
-    let names = if first_repeat(&stems).is_none() { stems } else { views.iter().map(|v| bare(&v.name)).collect() };
+    let stems: Vec<String> = paths.iter().map(|p| stem(p)).collect();
+    let names = if first_repeat(&stems).is_none() { stems } else { paths.iter().map(|p| bare(p)).collect() };
     if let Some((j, i)) = first_repeat(&names) {
         bail!("cameras {j} and {i} (in file order) would both be named {}: give each its own frames", names[i]);
     }
-    for (v, n) in views.iter_mut().zip(names) {
-        v.name = n;
-    }
-    Ok(())
+    Ok(names)
 }
 
 /// The first name that repeats an earlier one: (earlier, later) index.
