@@ -233,3 +233,46 @@ fn read_rig(path: &Path, capture: &Capture, roles: &Roles, base: &FitSettings) -
     }
     Ok(rig)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capture::{Frames, View};
+    use crate::scene::{Camera, Lens};
+
+    /// The record names the held-out camera or says there is none, so a
+    /// folder scored on no camera never resumes as one scored on a camera.
+    #[test]
+    fn the_record_names_the_held_out_camera_or_says_there_is_none() {
+        let lens = Lens::Pinhole { fx: 90.0, fy: 90.0, cx: 20.0, cy: 30.0 };
+        let view = |name: &str, x: f64| View {
+            name: name.into(),
+            camera: Camera {
+                position: Vec3::new(x, 0.0, 2.0),
+                look_at: Vec3::zeros(),
+                up: Vec3::y(),
+                lens,
+                width: 40,
+                height: 60,
+            },
+            frames: Frames::Images(vec![]),
+            held_out: false,
+        };
+        let capture = Capture { views: vec![view("a", -1.0), view("b", 0.0), view("c", 1.0)], smoke_box: None };
+        let base = FitSettings::default();
+        let roles = |held_out: Vec<usize>| Roles { training: vec![0, 2], held_out };
+        let none = RunSettings::of(&capture, &roles(vec![]), &base).unwrap().value().unwrap();
+        let b = RunSettings::of(&capture, &roles(vec![1]), &base).unwrap();
+        assert_eq!(none["held_out"], serde_json::Value::Null, "{none}");
+        assert_eq!(b.value().unwrap()["held_out"]["name"], "b");
+        assert_eq!(none["training"], b.value().unwrap()["training"]);
+
+        let dir = std::env::temp_dir().join(format!("dualphoton-reuse-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        write_json(&dir.join("settings.json"), &none).unwrap();
+        let e = b.record(&dir, true).unwrap_err().0;
+        assert!(e.contains("holds a run made with other held-out camera"), "{e}");
+        RunSettings::of(&capture, &roles(vec![]), &base).unwrap().record(&dir, true).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
