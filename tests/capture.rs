@@ -6,7 +6,7 @@
 mod common;
 
 use common::temp_dir;
-use dualphoton::capture::{calibration, frames, protocol::Protocol, Frames};
+use dualphoton::capture::{calibration, frames, observe, protocol::Protocol, Frames};
 use dualphoton::io::npy;
 use dualphoton::math::Vec3;
 use serde_json::{json, Value};
@@ -714,6 +714,10 @@ fn made_capture_writes_a_capture_that_reads_back() {
             }
             middles.push(images[0].data[31 * 47 + 23]);
         }
+        // Smoke inside the box on black: nothing a background would leave.
+        let (lo, hi) = made.grid_box().unwrap();
+        let seen = observe::observe(&made, &[0, 1, 2], &[0, 1, 2], 1).unwrap();
+        assert_eq!(observe::light_outside_box(&seen, &[0, 1, 2], &lo, &hi), None, "{share}");
     }
     assert!(middles.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {middles:?}");
     assert_ne!(middles[..3], middles[3..], "the ambient term's share changed nothing");

@@ -1,6 +1,7 @@
 //! A capture's frames as a reconstruction sees them: downsampled by area
-//! averaging (the cameras' intrinsics scaled with them), and the visual hull
-//! carved from real silhouettes.
+//! averaging (the cameras' intrinsics scaled with them), the visual hull
+//! carved from real silhouettes, and a warning where a frame shows light
+//! outside the smoke box (a background left in).
 //!
 //! Real silhouettes differ from rendered ones: the frames were
 //! background-subtracted and thresholded (codes up to about 8 of 255 set to
@@ -13,6 +14,7 @@
 use super::{frames, Capture};
 use crate::error::Result;
 use crate::image::Image;
+use crate::math::{intersect_box, Vec3};
 use crate::scene::Camera;
 
 /// Code value (of 255) above which an area-averaged pixel shows smoke:
@@ -48,7 +50,43 @@ pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usi
         cameras.push(view.camera.downsample(factor));
     }
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
-    Ok(Observed { cameras, images, names })
+    let observed = Observed { cameras, images, names };
+    if let Some((lo, hi)) = capture.smoke_box {
+        if let Some(warning) = light_outside_box(&observed, wanted, &lo, &hi) {
+            eprintln!("warning: {warning}");
+        }
+    }
+    Ok(observed)
+}
+
+/// Share of a camera's pixels outside the smoke box brighter than
+/// [`SILHOUETTE_CODE`] above which [`light_outside_box`] warns (the real
+/// clip's and the made captures' share is 0; a background left in, most
+/// of the image).
+pub const LIGHT_OUTSIDE_BOX: f64 = 0.05;
+
+/// A warning if a camera of `observed` (frames `wanted`) shows light
+/// where no density in the box `lo`..`hi` can explain it
+/// ([`bright_outside_box`] above [`LIGHT_OUTSIDE_BOX`] on some frame): a
+/// background not subtracted, or smoke outside the box. The fit would
+/// take either for smoke in the box.
+pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &Vec3) -> Option<String> {
+    let mut cameras = Vec::new();
+    for (c, (camera, name)) in observed.cameras.iter().zip(&observed.names).enumerate() {
+        let shares = observed.images.iter().map(|per| bright_outside_box(&per[c], camera, lo, hi));
+        let worst = shares.zip(wanted).filter_map(|(s, &f)| Some((s?, f))).max_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((share, frame)) = worst.filter(|&(s, _)| s > LIGHT_OUTSIDE_BOX) {
+            cameras.push(format!("{:.0} % in {name} (frame {frame})", 100.0 * share));
+        }
+    }
+    (!cameras.is_empty()).then(|| {
+        format!(
+            "of the pixels whose rays miss the smoke box, {} are brighter than code {SILHOUETTE_CODE} of 255; \
+             the fit renders smoke inside the box on black, so subtract the photographs' background first and \
+             give a box that holds all the smoke, or the fit takes that light for smoke",
+            cameras.join(", ")
+        )
+    })
 }
 
 /// The photographs' noise around `frame` at 1/`factor` of the full
@@ -89,6 +127,23 @@ pub fn noise_of_three(frames: [&[Image]; 3]) -> f64 {
 pub fn real_silhouette(image: &Image, factor: usize, margin_px: f64) -> Vec<bool> {
     let seen: Vec<bool> = image.data.iter().map(|&v| v * 255.0 > SILHOUETTE_CODE).collect();
     dilate(&seen, image.width, image.height, margin_px / factor as f64)
+}
+
+/// The share of the pixels of `image` (code value / 255, as `camera` sees
+/// it) whose rays miss the box `lo`..`hi` that are brighter than
+/// [`SILHOUETTE_CODE`]: light no density in the box can explain. Near 0 in
+/// a photograph of smoke inside the box on a subtracted background; near
+/// 1 where the background is still there. `None` if every ray meets the box.
+pub fn bright_outside_box(image: &Image, camera: &Camera, lo: &Vec3, hi: &Vec3) -> Option<f64> {
+    let (mut outside, mut bright) = (0usize, 0usize);
+    for (p, &v) in image.data.iter().enumerate() {
+        let (x, y) = ((p % image.width) as f64 + 0.5, (p / image.width) as f64 + 0.5);
+        if intersect_box(&camera.ray(x, y), lo, hi).is_none() {
+            outside += 1;
+            bright += usize::from(v * 255.0 > SILHOUETTE_CODE);
+        }
+    }
+    (outside > 0).then(|| bright as f64 / outside as f64)
 }
 
 /// `mask` grown by a disc of `radius` pixels.
@@ -138,6 +193,51 @@ mod tests {
         let frames: Vec<Vec<Image>> = (0..3).map(|t| vec![frame(t as f64, &mut rng)]).collect();
         let noise = noise_of_three([&frames[0], &frames[1], &frames[2]]);
         assert!((noise / sigma - 1.0).abs() < 0.05, "{noise} against {sigma}");
+    }
+
+    /// Light where every ray misses the box is a background (or smoke
+    /// outside the box), ringing below the silhouette's code is not, and
+    /// light inside the box's image is smoke.
+    #[test]
+    fn light_outside_the_box_is_named_by_camera_and_frame() {
+        let camera = Camera {
+            position: Vec3::new(0.0, 0.0, 3.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::y(),
+            lens: crate::scene::Lens::FovY(40.0),
+            width: 40,
+            height: 40,
+        };
+        let (lo, hi) = (Vec3::from_element(-0.3), Vec3::from_element(0.3));
+        let lit = |inside: f64, outside: f64| Image {
+            width: 40,
+            height: 40,
+            data: (0..1600)
+                .map(|p| {
+                    let ray = camera.ray((p % 40) as f64 + 0.5, (p / 40) as f64 + 0.5);
+                    (if intersect_box(&ray, &lo, &hi).is_some() { inside } else { outside }) / 255.0
+                })
+                .collect(),
+        };
+        let smoke = lit(200.0, 0.0);
+        assert_eq!(bright_outside_box(&smoke, &camera, &lo, &hi), Some(0.0));
+        assert_eq!(bright_outside_box(&lit(200.0, 6.0), &camera, &lo, &hi), Some(0.0));
+        assert_eq!(bright_outside_box(&lit(200.0, 20.0), &camera, &lo, &hi), Some(1.0));
+        let inside = Camera { position: Vec3::zeros(), look_at: Vec3::z(), ..camera.clone() };
+        assert_eq!(bright_outside_box(&smoke, &inside, &lo, &hi), None);
+
+        let observed = Observed {
+            cameras: vec![camera.clone(), camera.clone()],
+            images: vec![vec![smoke.clone(), smoke.clone()], vec![smoke.clone(), lit(200.0, 20.0)]],
+            names: vec!["a".into(), "b".into()],
+        };
+        let warning = light_outside_box(&observed, &[4, 9], &lo, &hi).unwrap();
+        assert!(
+            warning.starts_with("of the pixels whose rays miss the smoke box, 100 % in b (frame 9) are"),
+            "{warning}"
+        );
+        let clean = Observed { images: vec![vec![smoke.clone(), smoke]], ..observed };
+        assert_eq!(light_outside_box(&clean, &[4], &lo, &hi), None);
     }
 
     #[test]
