@@ -77,6 +77,21 @@ fn a_transforms_json_reads_folders_of_images_of_every_kind() {
 
     let err = frames::read(&capture.views[0], &[3]).unwrap_err().0;
     assert!(err.contains("frame 3 is out of range") && err.contains("0..2"), "{err}");
+
+    // A file_path without an extension (the NeRF synthetic scenes' form) is
+    // the image of that name with one; without such an image, an error.
+    let bare = |path: &str| {
+        let frames = json!([{"file_path": path, "transform_matrix": looking_at_origin(0.0, 2.0)}]);
+        std::fs::write(dir.join("bare.json"), json!({"camera_angle_x": 0.8, "frames": frames}).to_string()).unwrap();
+        calibration::load(&dir.join("bare.json"))
+    };
+    let one = bare("./cam_a/001").unwrap();
+    assert_eq!((one.views[0].name.as_str(), one.frame_count()), ("001", 1));
+    assert_eq!((one.views[0].camera.width, one.views[0].camera.height), (6, 4));
+    assert_eq!(frames::read(&one.views[0], &[0]).unwrap()[0].data[7], (10.0 + 1.0 + 6.0) / 255.0);
+    assert_eq!(bare("./cam_c/2").unwrap().views[0].frames.count(), 1);
+    let err = bare("./cam_a/009").unwrap_err().0;
+    assert!(err.contains("cam_a/009 does not exist, with or without .png"), "{err}");
 }
 
 /// Cameras are named by their frames' file or folder, or by its path where

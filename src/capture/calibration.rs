@@ -21,6 +21,7 @@
 //! in radians over the full width; square pixels, principal point at the
 //! image centre. Paths are relative to the calibration file.
 
+use super::frames::IMAGE_EXTENSIONS;
 use super::{Capture, Frames, View};
 use crate::bail;
 use crate::error::{show, Error, Result};
@@ -139,7 +140,7 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
     for (path, item) in top.list("frames")? {
         let f = Fields::lenient(item, &path)?;
         let file: String = f.required("file_path")?;
-        let source = existing(dir, &file, &f.name("file_path"))?;
+        let source = existing_image(dir, &file, &f.name("file_path"))?;
         let frames = frame_source(&source, &f.name("file_path"))?;
         let pick = |key: &str| inherited::<f64>(&f, top, key);
         let (width, height) = match (inherited(&f, top, "w")?, inherited(&f, top, "h")?) {
@@ -277,6 +278,20 @@ fn existing(dir: &Path, name: &str, field: &str) -> Result<PathBuf> {
         bail!("{field}: {} does not exist", show(&path));
     }
     Ok(path)
+}
+
+/// `dir/name`, or where that does not exist and `name` has no extension
+/// (as the NeRF synthetic scenes' `file_path`s have none), the first of
+/// `name.png`, `.jpg`, `.jpeg` and `.npy` that does.
+fn existing_image(dir: &Path, name: &str, field: &str) -> Result<PathBuf> {
+    let path = dir.join(name);
+    if path.exists() || path.extension().is_some() {
+        return existing(dir, name, field);
+    }
+    let found = IMAGE_EXTENSIONS.iter().map(|e| path.with_extension(e)).find(|p| p.is_file());
+    found.ok_or_else(|| {
+        Error(format!("{field}: {} does not exist, with or without .png, .jpg, .jpeg or .npy", show(&path)))
+    })
 }
 
 /// A video, an image, or a folder of images (one per frame, in name order).

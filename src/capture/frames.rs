@@ -35,8 +35,11 @@ pub fn have_ffmpeg() -> bool {
 /// True for the image files a folder of frames may hold.
 pub fn is_image(path: &Path) -> bool {
     let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
-    path.is_file() && matches!(ext.as_str(), "png" | "jpg" | "jpeg" | "npy")
+    path.is_file() && IMAGE_EXTENSIONS.contains(&ext.as_str())
 }
+
+/// The extensions of the image files a capture's frames may be, lower case.
+pub const IMAGE_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "npy"];
 
 /// Width and height of an image file, from its header.
 pub fn image_size(path: &Path) -> Result<(usize, usize)> {
