@@ -92,6 +92,15 @@ fn a_transforms_json_reads_folders_of_images_of_every_kind() {
     assert_eq!(bare("./cam_c/2").unwrap().views[0].frames.count(), 1);
     let err = bare("./cam_a/009").unwrap_err().0;
     assert!(err.contains("cam_a/009 does not exist, with or without .png"), "{err}");
+
+    // An image with alpha (smoke on a transparent background) is composited over black.
+    let rgba = dir.join("rgba.png");
+    image::ImageBuffer::from_fn(6, 4, |x, _| image::Rgba([200u8, 100, 0, if x == 0 { 255 } else { 51 }]))
+        .save(&rgba)
+        .unwrap();
+    let smoke = frames::read(&bare("rgba").unwrap().views[0], &[0]).unwrap().remove(0);
+    assert_eq!(smoke.data[0], 300.0 / (3.0 * 255.0));
+    assert!((smoke.data[1] - 0.2 * 300.0 / (3.0 * 255.0)).abs() < 1e-15, "{}", smoke.data[1]);
 }
 
 /// Cameras are named by their frames' file or folder, or by its path where

@@ -131,20 +131,22 @@ fn decode_video(path: &Path, wanted: &[usize], width: usize, height: usize) -> R
     Ok(wanted.iter().map(|n| decoded[sorted.binary_search(n).unwrap_or(0)].clone()).collect())
 }
 
-/// One image file as grey code value / full scale.
+/// One image file as grey code value / full scale; one with an alpha
+/// channel composited over black (the fit's smoke is rendered on black).
 fn read_image(path: &Path) -> Result<Image> {
     if path.extension().is_some_and(|e| e == "npy") {
         return read_npy(path);
     }
     let image = image::open(path).map_err(|e| Error(format!("{}: {e}", show(path))))?;
     let (width, height) = (image.width() as usize, image.height() as usize);
-    // Exact code values for integer images: code / full scale in f64.
-    let grey = |p: [f64; 3], full: f64| (p[0] + p[1] + p[2]) / (3.0 * full);
+    // Exact code values for integer images: code / full scale in f64 (an
+    // opaque pixel's alpha is full scale, a factor of exactly 1).
+    let grey = |p: [f64; 4], full: f64| (p[0] + p[1] + p[2]) / (3.0 * full) * (p[3] / full);
     let color = image.color();
     let data: Vec<f64> = match color.bytes_per_pixel() / color.channel_count() {
-        1 => image.to_rgb8().pixels().map(|p| grey(p.0.map(f64::from), 255.0)).collect(),
-        2 => image.to_rgb16().pixels().map(|p| grey(p.0.map(f64::from), 65535.0)).collect(),
-        _ => image.to_rgb32f().pixels().map(|p| grey(p.0.map(f64::from), 1.0)).collect(),
+        1 => image.to_rgba8().pixels().map(|p| grey(p.0.map(f64::from), 255.0)).collect(),
+        2 => image.to_rgba16().pixels().map(|p| grey(p.0.map(f64::from), 65535.0)).collect(),
+        _ => image.to_rgba32f().pixels().map(|p| grey(p.0.map(f64::from), 1.0)).collect(),
     };
     if data.iter().any(|v| !v.is_finite()) {
         bail!("{}: holds NaN or infinity", show(path));
