@@ -524,6 +524,22 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     let bad = fit("0");
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("camera a: the smoke box is not in its image"), "{err}");
+    // A camera in the box (a box in other units), and one posed in OpenCV's convention.
+    let mut inside = cam("a", 0.0, 2.0);
+    inside["transform_matrix"][2][3] = json!(0.1);
+    let mut opencv = cam("a", 0.0, 2.0);
+    for (row, col) in (0..3).flat_map(|row| [(row, 1), (row, 2)]) {
+        let flipped = -opencv["transform_matrix"][row][col].as_f64().unwrap();
+        opencv["transform_matrix"][row][col] = json!(flipped);
+    }
+    for (a, why) in
+        [(inside, "camera a: it stands inside the smoke box"), (opencv, "camera a: the smoke box is behind it")]
+    {
+        std::fs::write(dir.join("info.json"), calib(a).to_string()).unwrap();
+        let bad = fit("0");
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(!bad.status.success() && err.contains(why) && err.lines().count() == 1, "{err}");
+    }
     std::fs::write(dir.join("info.json"), calib(cam("a", 0.0, 2.0)).to_string()).unwrap();
     let bad = fit("2");
     let err = String::from_utf8_lossy(&bad.stderr);
@@ -741,7 +757,7 @@ fn made_capture_writes_a_capture_that_reads_back() {
         // Smoke inside the box on black: nothing a background would leave.
         let (lo, hi) = made.grid_box().unwrap();
         let seen = observe::observe(&made, &[0, 1, 2], &[0, 1, 2], 1).unwrap();
-        assert_eq!(observe::light_outside_box(&seen, &[0, 1, 2], &lo, &hi), None, "{share}");
+        assert_eq!(observe::light_outside_box(&seen, &[0, 1, 2], &lo, &hi).unwrap(), None, "{share}");
     }
     assert!(middles.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {middles:?}");
     assert_ne!(middles[..3], middles[3..], "the ambient term's share changed nothing");

@@ -59,7 +59,11 @@ enum Command {
     /// log.csv, fig5_loss.svg, fit_quality.csv (the estimate against your
     /// images, as `judge --images`; also printed) into OUT, and camera 2
     /// during training (fig6_camera2.png/.svg) and the first held-out camera
-    /// (fig8_held_out.png/.svg) where those cameras exist.
+    /// (fig8_held_out.png/.svg) where those cameras exist. With --capture,
+    /// one frame of a real capture instead: scene.json with density.npy (the
+    /// fitted density, lights and emission), log.csv, fit_quality.csv (per
+    /// camera), held_out.npy/.png (its test camera, if it has one) and, where
+    /// its cameras are aligned once for every frame, rig.json and settings.json.
     Fit(FitArgs),
     /// Judge how well a density explains images: per camera, the relative RMSE
     /// at 1x1, 2x2 and 4x4 pixel blocks of its high-quality render against the

@@ -146,8 +146,8 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
     }
     for &v in used {
         let view = &capture.views[v];
-        if !sees_box(&view.camera, &lo, &hi) {
-            return Err(Error(format!("camera {}: the smoke box is not in its image", view.name)));
+        if let Some(why) = box_unseen(&view.camera, &lo, &hi) {
+            return Err(Error(format!("camera {}: {why}", view.name)));
         }
         if !roles.training.contains(&v) {
             continue;
@@ -164,12 +164,27 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
     Ok(())
 }
 
-/// Whether any of the box's corners or its centre projects into `camera`'s image.
-fn sees_box(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> bool {
+/// Why `camera` cannot see the smoke box `lo`..`hi`, or `None` if one of
+/// the box's corners or its centre projects into its image: it stands in
+/// the box (a box in other units than the calibration's), the box is
+/// behind it (as OpenCV's poses put it when read as OpenGL's), or the box
+/// is out of its image.
+fn box_unseen(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> Option<&'static str> {
+    let p = camera.position;
+    if (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a]) {
+        return Some("it stands inside the smoke box: give the box in the calibration's units, around the smoke alone");
+    }
     let mut points: Vec<Vec3> =
         (0..8).map(|c| Vec3::new([lo.x, hi.x][c & 1], [lo.y, hi.y][(c >> 1) & 1], [lo.z, hi.z][c >> 2])).collect();
     points.push((lo + hi) / 2.0);
-    points.iter().any(|p| camera.pixel_of(p).is_some())
+    if points.iter().all(|p| camera.project(p).is_none()) {
+        return Some(
+            "the smoke box is behind it; a transform_matrix is camera-to-world in OpenGL's convention (the camera \
+             looks along minus its third column, its second is up): poses in OpenCV's or COLMAP's (looking along \
+             plus the third, the second down) need their second and third columns negated",
+        );
+    }
+    (!points.iter().any(|p| camera.pixel_of(p).is_some())).then_some("the smoke box is not in its image")
 }
 
 /// The images of `wanted` frames (read in one pass per camera).

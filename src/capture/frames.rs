@@ -67,7 +67,8 @@ pub fn read(view: &View, wanted: &[usize]) -> Result<Vec<Image>> {
     for image in &images {
         if (image.width, image.height) != (width, height) {
             bail!(
-                "camera {}: its frames are {}x{} but the calibration says {width}x{height} (width x height)",
+                "camera {}: its frames are {}x{} but the calibration says {width}x{height} (width x height): give \
+                 the calibration the images' size and intrinsics, or images of the size it gives",
                 view.name,
                 image.width,
                 image.height

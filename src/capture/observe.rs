@@ -12,7 +12,7 @@
 //! reach, and the silhouette is dilated by a margin for the calibration.
 
 use super::{frames, Capture};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::math::{intersect_box, Vec3};
 use crate::scene::Camera;
@@ -52,41 +52,48 @@ pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usi
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
     let observed = Observed { cameras, images, names };
     if let Some((lo, hi)) = capture.smoke_box {
-        if let Some(warning) = light_outside_box(&observed, wanted, &lo, &hi) {
+        if let Some(warning) = light_outside_box(&observed, wanted, &lo, &hi)? {
             eprintln!("warning: {warning}");
         }
     }
     Ok(observed)
 }
 
-/// Share of a camera's pixels outside the smoke box brighter than
-/// [`SILHOUETTE_CODE`] above which [`light_outside_box`] warns (the real
-/// clip's and the made captures' share is 0; a background left in, most
-/// of the image).
-pub const LIGHT_OUTSIDE_BOX: f64 = 0.05;
+/// Shares of a camera's pixels outside the smoke box brighter than
+/// [`SILHOUETTE_CODE`] above which [`light_outside_box`] warns, and above
+/// which it refuses the frames (the real clip's and the made captures'
+/// share is 0; a background left in lights most of the image).
+pub const LIGHT_OUTSIDE_BOX: [f64; 2] = [0.05, 0.5];
 
 /// A warning if a camera of `observed` (frames `wanted`) shows light
 /// where no density in the box `lo`..`hi` can explain it
-/// ([`bright_outside_box`] above [`LIGHT_OUTSIDE_BOX`] on some frame): a
-/// background not subtracted, or smoke outside the box. The fit would
-/// take either for smoke in the box.
-pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &Vec3) -> Option<String> {
-    let mut cameras = Vec::new();
+/// ([`bright_outside_box`] above the first of [`LIGHT_OUTSIDE_BOX`] on
+/// some frame): a background not subtracted, or smoke outside the box,
+/// which the fit would take for smoke in the box. An error above the
+/// second: no fit could explain those photographs.
+pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &Vec3) -> Result<Option<String>> {
+    let (mut cameras, mut most) = (Vec::new(), 0.0f64);
     for (c, (camera, name)) in observed.cameras.iter().zip(&observed.names).enumerate() {
         let shares = observed.images.iter().map(|per| bright_outside_box(&per[c], camera, lo, hi));
         let worst = shares.zip(wanted).filter_map(|(s, &f)| Some((s?, f))).max_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((share, frame)) = worst.filter(|&(s, _)| s > LIGHT_OUTSIDE_BOX) {
+        if let Some((share, frame)) = worst.filter(|&(s, _)| s > LIGHT_OUTSIDE_BOX[0]) {
             cameras.push(format!("{:.0} % in {name} (frame {frame})", 100.0 * share));
+            most = most.max(share);
         }
     }
-    (!cameras.is_empty()).then(|| {
-        format!(
-            "of the pixels whose rays miss the smoke box, {} are brighter than code {SILHOUETTE_CODE} of 255; \
-             the fit renders smoke inside the box on black, so subtract the photographs' background first and \
-             give a box that holds all the smoke, or the fit takes that light for smoke",
-            cameras.join(", ")
-        )
-    })
+    if cameras.is_empty() {
+        return Ok(None);
+    }
+    let what = format!(
+        "of the pixels whose rays miss the smoke box, {} are brighter than code {SILHOUETTE_CODE} of 255; the fit \
+         renders smoke inside the box on black, so subtract the photographs' background first and give a box \
+         that holds all the smoke",
+        cameras.join(", ")
+    );
+    if most > LIGHT_OUTSIDE_BOX[1] {
+        return Err(Error(what));
+    }
+    Ok(Some(format!("{what} (the fit goes on, taking that light for smoke)")))
 }
 
 /// The photographs' noise around `frame` at 1/`factor` of the full
@@ -231,13 +238,20 @@ mod tests {
             images: vec![vec![smoke.clone(), smoke.clone()], vec![smoke.clone(), lit(200.0, 20.0)]],
             names: vec!["a".into(), "b".into()],
         };
-        let warning = light_outside_box(&observed, &[4, 9], &lo, &hi).unwrap();
+        // Over half the pixels: an error; a tenth: a warning.
+        let error = light_outside_box(&observed, &[4, 9], &lo, &hi).unwrap_err().0;
+        assert!(error.starts_with("of the pixels whose rays miss the smoke box, 100 % in b (frame 9) are"), "{error}");
+        let mut tenth = lit(200.0, 0.0);
+        let outside: Vec<usize> = (0..1600).filter(|&p| tenth.data[p] == 0.0).collect();
+        outside.iter().step_by(10).for_each(|&p| tenth.data[p] = 20.0 / 255.0);
+        let some = Observed { images: vec![vec![smoke.clone(), tenth]], ..observed.clone() };
+        let warning = light_outside_box(&some, &[4], &lo, &hi).unwrap().unwrap();
         assert!(
-            warning.starts_with("of the pixels whose rays miss the smoke box, 100 % in b (frame 9) are"),
+            warning.contains(" 10 % in b (frame 4)") && warning.ends_with("taking that light for smoke)"),
             "{warning}"
         );
         let clean = Observed { images: vec![vec![smoke.clone(), smoke]], ..observed };
-        assert_eq!(light_outside_box(&clean, &[4], &lo, &hi), None);
+        assert_eq!(light_outside_box(&clean, &[4], &lo, &hi).unwrap(), None);
     }
 
     #[test]

@@ -128,7 +128,14 @@ pub fn fit_and_write(
         record.write(out)?;
         reuse::write_rig(&run.path("rig.json"), rig)?;
     }
-    eprintln!("reading frame {frame} of {} cameras ...", roles.training.len() + roles.held_out.len());
+    let first = &capture.views[roles.training[0]];
+    let (w, h) = (first.camera.width / settings.factor, first.camera.height / settings.factor);
+    eprintln!(
+        "reading frame {frame} of {} cameras (fitted at 1/{} of their resolution: {w}x{h} for {}) ...",
+        roles.training.len() + roles.held_out.len(),
+        settings.factor,
+        first.name
+    );
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
     let mut log: Vec<FitRow> = Vec::new();
     let result = fit_frame(&capture, &roles, &images, settings, rig.as_ref(), &mut |row| {
