@@ -665,6 +665,10 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     refused(&[], "--box");
     refused(&["--box", "0.5,-0.5,-0.5,-0.5,0.5,0.5"], "--box: ");
     refused(&["--box", "-0.5,-0.5,-0.5,0.5,0.5"], "--box: ");
+    refused(
+        &["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--box=-1,-1,-1,1,1,1"],
+        "'--box <X0,Y0,Z0,X1,Y1,Z1>' cannot be used",
+    );
     refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--study", "missing.json"], "--study: ");
     // Options of the synthetic fit mean nothing to a capture's.
     refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--spp", "4"], "--spp");

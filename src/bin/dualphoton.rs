@@ -181,6 +181,7 @@ struct FitArgs {
         requires = "capture",
         value_delimiter = ',',
         allow_hyphen_values = true,
+        action = clap::ArgAction::Set,
         value_name = "X0,Y0,Z0,X1,Y1,Z1"
     )]
     smoke_box: Option<Vec<f64>>,
