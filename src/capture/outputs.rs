@@ -129,11 +129,13 @@ pub fn fit_and_write(
         reuse::write_rig(&run.path("rig.json"), rig)?;
     }
     let first = &capture.views[roles.training[0]];
-    let (w, h) = (first.camera.width / settings.factor, first.camera.height / settings.factor);
+    let working = first.camera.downsample(settings.factor);
     eprintln!(
-        "reading frame {frame} of {} cameras (fitted at 1/{} of their resolution: {w}x{h} for {}) ...",
+        "reading frame {frame} of {} cameras (fitted at 1/{} of their resolution: {}x{} for {}) ...",
         roles.training.len() + roles.held_out.len(),
         settings.factor,
+        working.width,
+        working.height,
         first.name
     );
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
