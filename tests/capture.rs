@@ -672,6 +672,18 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--study", "missing.json"], "--study: ");
     // Options of the synthetic fit mean nothing to a capture's.
     refused(&["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--spp", "4"], "--spp");
+    // Photographs the fit refuses are refused before the output folder is made.
+    let resized = json!({"camera_angle_x": 0.6, "w": 64, "h": 48, "frames": calib["frames"]});
+    std::fs::write(dir.join("resized.json"), resized.to_string()).unwrap();
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_dualphoton"))
+        .args(["fit", "--capture"])
+        .arg(dir.join("resized.json"))
+        .args(["--frame", "0", "--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("but the calibration says 64x48"), "{err}");
     assert!(!out.exists(), "a refused fit writes nothing");
 
     let settings = settings.to_str().unwrap();

@@ -119,15 +119,8 @@ pub fn fit_and_write(
         .map(|dir| reuse::earlier_rig(dir, &record, &capture, &roles, settings))
         .transpose()
         .map_err(|e| Error(format!("--rig: {e}")))?;
-    let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
-    let rig = match earlier_rig {
-        Some(rig) => Some(rig),
-        None => reuse::fit_rig(&capture, &roles, settings)?,
-    };
-    if let Some(rig) = &rig {
-        record.write(out)?;
-        reuse::write_rig(&run.path("rig.json"), rig)?;
-    }
+    // The frame is read before the output folder is made: photographs the
+    // fit refuses (another size, light outside the box) leave nothing behind.
     let first = &capture.views[roles.training[0]];
     let working = first.camera.downsample(settings.factor);
     eprintln!(
@@ -139,6 +132,15 @@ pub fn fit_and_write(
         first.name
     );
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
+    let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
+    let rig = match earlier_rig {
+        Some(rig) => Some(rig),
+        None => reuse::fit_rig(&capture, &roles, settings)?,
+    };
+    if let Some(rig) = &rig {
+        record.write(out)?;
+        reuse::write_rig(&run.path("rig.json"), rig)?;
+    }
     let mut log: Vec<FitRow> = Vec::new();
     let result = fit_frame(&capture, &roles, &images, settings, rig.as_ref(), &mut |row| {
         // A line every 10 updates: as readable in a log file as in a terminal.
