@@ -125,6 +125,69 @@ fn cameras_whose_frames_share_a_name_are_named_by_their_path() {
     assert!(err.contains("cameras 0 and 2") && err.contains("named cam0") && !err.contains('\n'), "{err}");
 }
 
+/// A `transforms.json` may list each camera once per frame (an entry per
+/// image): entries with one pose and lens are one camera, its frames ordered
+/// by `time` where given.
+#[test]
+fn a_transforms_json_listing_each_camera_once_per_frame_is_read_as_its_cameras() {
+    let dir = temp_dir("capture_per_image");
+    std::fs::create_dir_all(dir.join("all")).unwrap();
+    for cam in 0..2u16 {
+        std::fs::create_dir_all(dir.join(format!("cam{cam}"))).unwrap();
+        for n in 0..3u16 {
+            let code = |_: u32, _: u32| 100 * cam + 10 * n;
+            write_png(&dir.join(format!("cam{cam}/{n}.png")), 6, 4, false, code);
+            write_png(&dir.join(format!("all/c{cam}_{n}.png")), 6, 4, false, code);
+        }
+    }
+    let entry = |cam: u16, n: u16, time: Option<f64>, folder: bool| {
+        let file = if folder { format!("cam{cam}/{n}.png") } else { format!("all/c{cam}_{n}.png") };
+        let mut e = json!({"file_path": file, "transform_matrix": looking_at_origin(cam as f64, 2.0)});
+        if let Some(t) = time {
+            e["time"] = json!(t);
+        }
+        e
+    };
+    let load = |frames: Vec<Value>| {
+        let path = dir.join("transforms.json");
+        std::fs::write(&path, json!({"camera_angle_x": 0.8, "frames": frames}).to_string()).unwrap();
+        calibration::load(&path)
+    };
+    // Frame n of camera c is code 100 c + 10 n.
+    let codes = |capture: &dualphoton::capture::Capture| -> Vec<Vec<f64>> {
+        let view = |v| (0..capture.frame_count()).map(move |n| frames::read(v, &[n]).unwrap()[0].data[0] * 255.0);
+        capture.views.iter().map(|v| view(v).map(|c| c.round()).collect()).collect()
+    };
+    // Interleaved and shuffled, with D-NeRF's times: ordered by time.
+    let order = [(1, 2), (0, 1), (1, 0), (0, 2), (0, 0), (1, 1)];
+    let timed: Vec<Value> = order.iter().map(|&(c, n)| entry(c, n, Some(0.5 * n as f64), true)).collect();
+    let capture = load(timed).unwrap();
+    assert_eq!(capture.views.iter().map(|v| v.name.as_str()).collect::<Vec<_>>(), ["cam1", "cam0"]);
+    assert_eq!(codes(&capture), [[100.0, 110.0, 120.0], [0.0, 10.0, 20.0]]);
+    // Without times, in file order; images of one folder name the cameras by number.
+    let untimed: Vec<Value> = (0..3).flat_map(|n| [entry(0, n, None, false), entry(1, n, None, false)]).collect();
+    let capture = load(untimed).unwrap();
+    assert_eq!(capture.views.iter().map(|v| v.name.as_str()).collect::<Vec<_>>(), ["camera0", "camera1"]);
+    assert_eq!(codes(&capture), [[0.0, 10.0, 20.0], [100.0, 110.0, 120.0]]);
+    // What cannot be matched frame by frame is a one-line error.
+    let refused = |frames: Vec<Value>, says: &str| {
+        let err = load(frames).unwrap_err().0;
+        assert!(err.contains(says) && !err.contains('\n'), "{err}");
+    };
+    let missing = vec![entry(0, 0, None, true), entry(0, 1, None, true), entry(1, 0, None, true)];
+    refused(missing, "listed for 2 frames, the camera of frames[2] for 1");
+    let mut shifted = vec![entry(0, 0, Some(0.0), true), entry(0, 1, Some(1.0), true), entry(1, 0, Some(0.0), true)];
+    shifted.push(json!({"file_path": "cam1/1.png", "transform_matrix": looking_at_origin(1.0, 2.0), "time": 2.0}));
+    refused(shifted, "frames[3]: time 2 has no match");
+    let folder = vec![
+        entry(0, 0, None, true),
+        entry(0, 1, None, true),
+        json!({"file_path": "cam1",
+        "transform_matrix": looking_at_origin(1.0, 2.0)}),
+    ];
+    refused(folder, "frames[2]: names a folder of frames, but this file lists cameras once per frame");
+}
+
 #[test]
 fn a_bad_capture_is_a_one_line_error_before_any_work() {
     let dir = temp_dir("capture_errors");

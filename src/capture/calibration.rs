@@ -11,7 +11,9 @@
 //! - **`transforms.json`** (NeRF, instant-ngp, nerfstudio): `frames`, a list
 //!   of `{file_path, transform_matrix}`, one per camera; `file_path` names
 //!   an image (a one-frame capture) or a folder of images (one per frame, in
-//!   name order). Intrinsics at the top or per camera: either
+//!   name order). Or one per camera and frame, each an image: entries with
+//!   the same pose and lens are one camera (see `per_camera`).
+//!   Intrinsics at the top or per camera: either
 //!   `camera_angle_x` or `fl_x`, `fl_y`, `cx`, `cy`; the size `w`, `h`.
 //!   No smoke box: the user gives it.
 //!
@@ -161,9 +163,107 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
         };
         pinhole(&f, top, &path)?;
         let camera = posed(&f, lens, width, height)?;
-        found.push((file, camera, frames, false));
+        let time: Option<f64> = f.optional("time")?;
+        found.push(Entry { path, file, camera, frames, time });
     }
-    Ok(Capture { views: named(found)?, smoke_box: None })
+    Ok(Capture { views: named(per_camera(found)?)?, smoke_box: None })
+}
+
+/// One entry of a `transforms.json`'s `frames`.
+struct Entry {
+    /// Where it is in the file (`frames[3]`), for errors.
+    path: String,
+    /// Its `file_path`.
+    file: String,
+    camera: Camera,
+    frames: Frames,
+    /// Its `time`, if given (D-NeRF's field).
+    time: Option<f64>,
+}
+
+/// The cameras of a `transforms.json`'s entries. Each entry is a camera,
+/// unless entries share one: a file may list each camera once per frame
+/// (an entry per image, as nerfstudio lists images). Entries with the same
+/// `transform_matrix` and intrinsics are then one camera, its frames in the
+/// order of their `time` where every entry gives one, else in file order,
+/// each camera named by its images' folder (`cam0/000060.png` is `cam0`)
+/// or, where the cameras' images share one, `camera0`, `camera1`, ... in
+/// file order. Errors: such an entry naming a folder, cameras with
+/// different numbers of frames or different times.
+fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>> {
+    let mut groups: Vec<Vec<Entry>> = Vec::new();
+    for entry in entries {
+        match groups.iter_mut().find(|g| g[0].camera == entry.camera) {
+            Some(group) => group.push(entry),
+            None => groups.push(vec![entry]),
+        }
+    }
+    if groups.iter().all(|g| g.len() == 1) {
+        return Ok(groups.into_iter().flatten().map(|e| (e.file, e.camera, e.frames, false)).collect());
+    }
+    let repeated = groups.iter().find(|g| g.len() > 1).map_or(&groups[0], |g| g);
+    let single_image = |e: &Entry| matches!(&e.frames, Frames::Images(i) if i.len() == 1);
+    if let Some(e) = groups.iter().flatten().find(|e| !single_image(e)) {
+        bail!(
+            "{}: names a folder of frames, but this file lists cameras once per frame ({} has the camera of {}: \
+             the same transform_matrix and intrinsics): give each entry one image, or list each camera once \
+             with a folder",
+            e.path,
+            repeated[1].path,
+            repeated[0].path
+        );
+    }
+    let timed = groups.iter().flatten().all(|e| e.time.is_some());
+    if timed {
+        for group in &mut groups {
+            group.sort_by(|a, b| a.time.partial_cmp(&b.time).unwrap_or(std::cmp::Ordering::Equal));
+        }
+    }
+    let first = &groups[0];
+    for group in &groups[1..] {
+        if group.len() != first.len() {
+            bail!(
+                "the camera of {} is listed for {} frames, the camera of {} for {}: every camera needs an image \
+                 of every frame",
+                first[0].path,
+                first.len(),
+                group[0].path,
+                group.len()
+            );
+        }
+        if let Some((a, b)) = first.iter().zip(group).find(|(a, b)| timed && a.time != b.time) {
+            bail!(
+                "{}: time {} has no match in the camera of {} (its frame at that place is time {}): every camera \
+                 needs an image of every frame",
+                b.path,
+                b.time.unwrap_or_default(),
+                a.path,
+                a.time.unwrap_or_default()
+            );
+        }
+    }
+    let folder = |g: &[Entry]| {
+        let parents: Vec<_> = g.iter().map(|e| Path::new(&e.file).parent().map(Path::to_path_buf)).collect();
+        parents.iter().all(|p| *p == parents[0]).then(|| parents[0].clone()).flatten()
+    };
+    let folders: Option<Vec<PathBuf>> = groups.iter().map(|g| folder(g)).collect();
+    let distinct = |f: &Vec<PathBuf>| (0..f.len()).all(|i| !f[..i].contains(&f[i]) && !f[i].as_os_str().is_empty());
+    let names: Vec<String> = match folders.filter(distinct) {
+        Some(folders) => folders.iter().map(|f| f.to_string_lossy().into_owned()).collect(),
+        None => (0..groups.len()).map(|k| format!("camera{k}")).collect(),
+    };
+    Ok(groups
+        .into_iter()
+        .zip(names)
+        .map(|(group, name)| {
+            let camera = group[0].camera.clone();
+            let images = group.into_iter().flat_map(|e| match e.frames {
+                Frames::Images(paths) => paths,
+                Frames::Video { .. } => Vec::new(),
+            });
+            (name, camera, Frames::Images(images.collect()), false)
+        })
+        .collect())
 }
 
 /// The lens models of a `transforms.json` (nerfstudio's `camera_model`)
