@@ -513,6 +513,22 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     );
     assert_eq!(err.lines().count(), 1, "{err}");
     assert_eq!(std::fs::read_to_string(out.join("fits.csv")).unwrap(), fits, "a refused rerun writes no fit");
+    // --box replaces the calibration's smoke box (a transforms.json has none).
+    let boxed = |smoke_box: &str| {
+        let run = std::process::Command::new(exe)
+            .arg("--data")
+            .arg(&dir)
+            .args(["--frames", "0,2", "--models", "emission-absorption", "--box", smoke_box, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(!run.status.success());
+        String::from_utf8_lossy(&run.stderr).into_owned()
+    };
+    let err = boxed("-0.25,-0.5,-0.5,0.5,0.5,0.5");
+    assert!(err.contains("holds a run made with other smoke box") && err.lines().count() == 1, "{err}");
+    let err = boxed("0.5,-0.5,-0.5,-0.5,0.5,0.5");
+    assert!(err.contains("--box: ") && err.lines().count() == 1, "{err}");
     // Another frame with the same settings is fitted and added to the rows before it.
     let more = run("0,1,2");
     assert!(more.status.success(), "{}", String::from_utf8_lossy(&more.stderr));
@@ -771,6 +787,23 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     assert!(!out.join("rig.json").exists() && !out.join("settings.json").exists());
     let quality = std::fs::read_to_string(out.join("fit_quality.csv")).unwrap();
     assert_eq!(quality.lines().filter(|l| l.contains(",training,")).count(), 2, "{quality}");
+
+    // experiment_real takes the same capture with the box and a camera to
+    // hold out; what one frame cannot measure (the photographs' noise over
+    // three) is left empty, never NaN.
+    let compared = dir.join("compared");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_experiment_real"))
+        .arg("--data")
+        .arg(dir.join("transforms.json"))
+        .args(["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--held-out", "b", "--frames", "0"])
+        .args(["--models", "emission-absorption", "--fit-settings", settings, "--out"])
+        .arg(&compared)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let summary = std::fs::read_to_string(compared.join("summary.md")).unwrap();
+    assert!(summary.contains("crop rows 0..48 and columns 0..64") && !summary.contains("NaN"), "{summary}");
+    assert!(summary.contains("| emission-absorption |"), "{summary}");
 }
 
 /// `made_capture` writes, from a capture's cameras and box, a capture that

@@ -22,7 +22,7 @@ use dualphoton::capture::frame::{self, CameraChoice};
 use dualphoton::capture::reuse;
 use dualphoton::capture::scalarflow_cameras::held_out_zoom;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
-use dualphoton::capture::{calibration, frames, protocol::Protocol, Capture};
+use dualphoton::capture::{box_of, calibration, frames, protocol::Protocol, Capture};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
@@ -44,6 +44,17 @@ struct Args {
     /// focal length there over the calibration's, divided by the training cameras' geometric mean of the same.
     #[arg(long)]
     held_out_focal_lengths: Option<PathBuf>,
+    /// The smoke box, where the density lives, in the capture's units: x0,y0,z0,x1,y1,z1 (lower corner,
+    /// upper corner). Default: the calibration's (info.json's voxel_matrix and voxel_scale); a
+    /// transforms.json has none.
+    #[arg(
+        long = "box",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        action = clap::ArgAction::Set,
+        value_name = "X0,Y0,Z0,X1,Y1,Z1"
+    )]
+    smoke_box: Option<Vec<f64>>,
     /// Frames scored.
     #[arg(long, value_delimiter = ',', default_value = "0,10,20,30,40,50,60,70,80,90,100,110,119")]
     frames: Vec<usize>,
@@ -77,7 +88,9 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(args: Args) -> Result<()> {
+    let smoke_box = args.smoke_box.as_deref().map(box_of).transpose().map_err(|e| Error(format!("--box: {e}")))?;
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
+    capture.smoke_box = smoke_box.or(capture.smoke_box);
     let roles = args.cameras.roles(&capture)?;
     let held_out = roles.held_out[0];
     let fit_settings =
@@ -107,7 +120,7 @@ fn run(args: Args) -> Result<()> {
         eprintln!("frame {frame}: scored");
     }
     write_rows(&run.path("baselines.csv"), &rows)?;
-    let mut md = summary(&rows, &test.name);
+    let mut md = summary(&rows, &test.name, &protocol);
     if !args.models.is_empty() {
         let views = run.path("views");
         let (fits, rig) =
@@ -142,12 +155,12 @@ fn nearest_training_view(capture: &Capture, held_out: usize) -> Result<usize> {
         .ok_or_else(|| Error("the capture has no training camera".into()))
 }
 
-fn summary(rows: &[Row], held_out: &str) -> String {
+fn summary(rows: &[Row], held_out: &str, protocol: &Protocol) -> String {
     let mut md = format!(
         "# Real capture: held-out camera {held_out}\n\n\
          Predictions that need no reconstruction, scored under the field's protocol \
-         (half resolution by area averaging, crop rows 90..960 and columns 45..540, \
-         PSNR = -10 log10 MSE of code value / 255). Mean over frames:\n\n"
+         ({}, PSNR = -10 log10 MSE of code value / 255). Mean over frames:\n\n",
+        protocol.describe()
     );
     let mut names: Vec<&str> = Vec::new();
     for r in rows {

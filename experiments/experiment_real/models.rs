@@ -217,14 +217,18 @@ pub fn run(
                 psnr_expected_db: expected.psnr,
                 rel_rmse_expected: expected.rel_rmse,
             };
+            // A score is undefined on a black photograph (relative RMSE) or an exact one (PSNR).
+            let shown = |v: Option<f64>, scale: f64, decimals: usize| {
+                v.map_or("undefined".to_string(), |v| format!("{:.*}", decimals, scale * v))
+            };
             eprintln!(
-                "frame {frame} {}: held-out PSNR {:.2} dB, relative RMSE {:.1} % (expected view {:.2} dB, {:.1} %), \
+                "frame {frame} {}: held-out PSNR {} dB, relative RMSE {} % (expected view {} dB, {} %), \
                  fit {:.0} s, render {:.0} s",
                 model.name(),
-                held.score.psnr.unwrap_or(f64::NAN),
-                100.0 * held.score.rel_rmse.unwrap_or(f64::NAN),
-                expected.psnr.unwrap_or(f64::NAN),
-                100.0 * expected.rel_rmse.unwrap_or(f64::NAN),
+                shown(held.score.psnr, 1.0, 2),
+                shown(held.score.rel_rmse, 100.0, 1),
+                shown(expected.psnr, 1.0, 2),
+                shown(expected.rel_rmse, 100.0, 1),
                 row.fit_s,
                 row.render_s
             );
@@ -245,20 +249,21 @@ fn joined(items: impl Iterator<Item = String>) -> String {
 /// per frame, and how many frames; then the lit models against
 /// emission-absorption frame by frame.
 pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
-    let mean = |v: Vec<f64>| if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 };
+    // The mean of the frames that define a value, scaled; empty where none does.
+    let cell = |v: Vec<f64>, scale: f64, decimals: usize| match v.len() {
+        0 => String::new(),
+        n => format!("{:.*}", decimals, scale * (v.iter().sum::<f64>() / n as f64)),
+    };
     let lines = models.iter().map(|m| {
         let mine: Vec<&FitResult> = rows.iter().filter(|r| r.model == m.name()).collect();
         vec![
             m.name().to_string(),
-            format!("{:.2}", mean(mine.iter().filter_map(|r| r.psnr_db).collect())),
-            format!("{:.1}", 100.0 * mean(mine.iter().filter_map(|r| r.rel_rmse).collect())),
-            format!("{:.2}", 255.0 * mean(mine.iter().map(|r| r.train_rmse).collect())),
-            format!("{:.2}", 255.0 * mean(mine.iter().filter_map(|r| r.train_noise).collect())),
-            match mine.iter().filter_map(|r| r.light_share).collect::<Vec<_>>() {
-                shares if shares.is_empty() => String::new(),
-                shares => format!("{:.0}", 100.0 * mean(shares)),
-            },
-            format!("{:.0}", mean(mine.iter().map(|r| r.fit_s + r.render_s).collect())),
+            cell(mine.iter().filter_map(|r| r.psnr_db).collect(), 1.0, 2),
+            cell(mine.iter().filter_map(|r| r.rel_rmse).collect(), 100.0, 1),
+            cell(mine.iter().map(|r| r.train_rmse).collect(), 255.0, 2),
+            cell(mine.iter().filter_map(|r| r.train_noise).collect(), 255.0, 2),
+            cell(mine.iter().filter_map(|r| r.light_share).collect(), 100.0, 0),
+            cell(mine.iter().map(|r| r.fit_s + r.render_s).collect(), 1.0, 0),
             mine.len().to_string(),
         ]
     });
@@ -290,7 +295,7 @@ pub fn table(rows: &[FitResult], models: &[ImageModel]) -> String {
             md += &format!(
                 "\n{} against {ea}: {:+.2} dB mean held-out PSNR, ahead on {wins} of {} frames.\n",
                 m.name(),
-                mean(diffs.clone()),
+                diffs.iter().sum::<f64>() / diffs.len() as f64,
                 diffs.len()
             );
         }

@@ -125,7 +125,7 @@ impl Capture {
         self.smoke_box.ok_or_else(|| {
             crate::Error(
                 "the calibration gives no smoke box (an info.json's voxel_matrix and voxel_scale; a transforms.json \
-                 has none)"
+                 has none): give --box x0,y0,z0,x1,y1,z1 in its units"
                     .into(),
             )
         })

@@ -32,6 +32,15 @@ impl Protocol {
         }
     }
 
+    /// What the metrics see, in words: "half resolution by area averaging,
+    /// crop rows 90..960 and columns 45..540".
+    pub fn describe(&self) -> String {
+        let [x, y, w, h] = self.crop;
+        let scale =
+            if self.factor == 2 { "half resolution".to_string() } else { format!("1/{} resolution", self.factor) };
+        format!("{scale} by area averaging, crop rows {y}..{} and columns {x}..{}", y + h, x + w)
+    }
+
     /// `image` downsampled and cropped, as the metrics see it.
     pub fn view(&self, image: &Image) -> Image {
         crop(&image.downsample(self.factor), self.crop)
@@ -287,5 +296,9 @@ mod tests {
         assert_eq!(v.data[0], 2.0 * 45.0 + 0.5);
         assert_eq!(v.data[494], 2.0 * 539.0 + 0.5);
         assert_eq!(Protocol::for_size(64, 48).view(&Image::zeros(64, 48)).data.len(), 32 * 24);
+        // Described as it is applied: rows and columns of the half-resolution view.
+        let scalarflow = "half resolution by area averaging, crop rows 90..960 and columns 45..540";
+        assert_eq!(Protocol::for_size(1080, 1920).describe(), scalarflow);
+        assert_eq!(Protocol::for_size(64, 48).describe().split(", ").nth(1), Some("crop rows 0..24 and columns 0..32"));
     }
 }
