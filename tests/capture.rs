@@ -804,6 +804,8 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     let summary = std::fs::read_to_string(compared.join("summary.md")).unwrap();
     assert!(summary.contains("crop rows 0..48 and columns 0..64") && !summary.contains("NaN"), "{summary}");
     assert!(summary.contains("| emission-absorption |"), "{summary}");
+    // Its figures show the frames it scored, though none is ScalarFlow's figure frames.
+    assert!(compared.join("held_out_views.svg").exists() && compared.join("density_slices.svg").exists());
 }
 
 /// `made_capture` writes, from a capture's cameras and box, a capture that

@@ -13,9 +13,21 @@ use dualphoton::io::svg::Rgb;
 use dualphoton::volume::Grid;
 use std::path::{Path, PathBuf};
 
-/// The frames shown (when they are among those scored): the three frames
-/// of the issue's own baseline, spread over the clip.
-pub const FIGURE_FRAMES: [usize; 3] = [30, 60, 90];
+/// The frames shown where they are among those scored: three frames spread
+/// over ScalarFlow's clip, those of the baseline its protocol names.
+const FIGURE_FRAMES: [usize; 3] = [30, 60, 90];
+
+/// The frames of `scored` shown: [`FIGURE_FRAMES`] among them, or where
+/// none is, the first, middle and last scored (a capture of other frames).
+pub fn figure_frames(scored: &[usize]) -> Vec<usize> {
+    let chosen: Vec<usize> = FIGURE_FRAMES.iter().copied().filter(|f| scored.contains(f)).collect();
+    if !chosen.is_empty() || scored.is_empty() {
+        return chosen;
+    }
+    let mut ends = vec![scored[0], scored[scored.len() / 2], scored[scored.len() - 1]];
+    ends.dedup();
+    ends
+}
 
 /// The held-out view's panels are the protocol's crop shrunk this many
 /// times more by area averaging.
@@ -64,7 +76,8 @@ fn read_codes(path: &Path) -> Result<Image> {
 pub fn compose(out: &Path, dir: &Path, models: &[&str], photographs: &[(usize, &Image)]) -> Result<()> {
     let mut views = Vec::new();
     let mut slices = Vec::new();
-    for &(frame, photo) in photographs.iter().filter(|(f, _)| FIGURE_FRAMES.contains(f)) {
+    let shown = figure_frames(&photographs.iter().map(|&(f, _)| f).collect::<Vec<_>>());
+    for &(frame, photo) in photographs.iter().filter(|(f, _)| shown.contains(f)) {
         if !models.iter().all(|m| view_path(dir, frame, m).exists() && slice_path(dir, frame, m).exists()) {
             continue;
         }

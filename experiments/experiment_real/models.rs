@@ -4,7 +4,7 @@
 //! skips the (frame, model) pairs already there, so a long run resumes.
 //! The figure frames' panels go to `views/` as their fits finish.
 
-use crate::figures::{self, FIGURE_FRAMES};
+use crate::figures::{self, figure_frames};
 use dualphoton::capture::expected_view;
 use dualphoton::capture::fit::training_rmse;
 use dualphoton::capture::frame::{fit_frame, read, Roles};
@@ -164,6 +164,7 @@ pub fn run(
     };
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
     let rig = reuse::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
+    let shown = figure_frames(frames);
     for images in read(capture, roles, &todo, base.factor)? {
         let frame = images.frame;
         let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
@@ -186,7 +187,7 @@ pub fn run(
             let fitted = &result.fit;
             let camera = &capture.views[held.view].camera;
             let expected = expected_view::score(camera, &held.prediction, fitted, &images.held_out[0]);
-            if FIGURE_FRAMES.contains(&frame) {
+            if shown.contains(&frame) {
                 figures::keep(views, frame, model.name(), &held.prediction, &fitted.scene.density)?;
             }
             let row = FitResult {
