@@ -640,6 +640,18 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
         !bad.status.success() && err.contains("--focal-lengths") && err.contains("no camera at a's position"),
         "{err}"
     );
+    // A held-out photograph lit all over (a background left in) is refused
+    // as a training one is; its camera far enough to see past the box.
+    let mut far = calib(cam("a", 0.0, 2.0));
+    far["test_videos"][0] = cam("test", 2.828, 2.828);
+    std::fs::write(dir.join("info.json"), far.to_string()).unwrap();
+    write_png(&dir.join("test/001.png"), 128, 96, false, |_, _| 200);
+    let bad = fit("1");
+    let err = String::from_utf8_lossy(&bad.stderr);
+    let refused = err.lines().any(|l| l.starts_with("error: ") && l.contains("100 % in test (frame 1)"));
+    assert!(!bad.status.success() && refused, "{err}");
+    write_png(&dir.join("test/001.png"), 128, 96, false, disc);
+    std::fs::write(dir.join("info.json"), calib(cam("a", 0.0, 2.0)).to_string()).unwrap();
     assert!(!out.exists(), "a bad capture is refused before any output");
     let ok = fit("1");
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));

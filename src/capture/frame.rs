@@ -5,7 +5,7 @@
 //! `experiment_real` both go through here.
 
 use super::fit::{fit, render_view, Fit, FitRow};
-use super::observe::{observe, Observed};
+use super::observe::{check_light_outside_box, observe, Observed};
 use super::protocol::{Aligned, Oracle, Protocol, Score};
 use super::rig::Rig;
 use super::settings::FitSettings;
@@ -196,6 +196,14 @@ pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -
             per_frame.push(image);
         }
     }
+    // The held-out photographs are checked as the training ones are: a
+    // background left in would otherwise show only as a low score.
+    let held_seen = Observed {
+        cameras: roles.held_out.iter().map(|&v| capture.views[v].camera.downsample(factor)).collect(),
+        images: held.iter().map(|per| per.iter().map(|i| i.downsample(factor)).collect()).collect(),
+        names: roles.held_out.iter().map(|&v| capture.views[v].name.clone()).collect(),
+    };
+    check_light_outside_box(capture, &held_seen, wanted)?;
     Ok(wanted
         .iter()
         .zip(training.images)

@@ -51,12 +51,19 @@ pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usi
     }
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
     let observed = Observed { cameras, images, names };
+    check_light_outside_box(capture, &observed, wanted)?;
+    Ok(observed)
+}
+
+/// [`light_outside_box`] on `observed` (frames `wanted` of `capture`), its
+/// warning printed, where the capture has a smoke box.
+pub fn check_light_outside_box(capture: &Capture, observed: &Observed, wanted: &[usize]) -> Result<()> {
     if let Some((lo, hi)) = capture.smoke_box {
-        if let Some(warning) = light_outside_box(&observed, wanted, &lo, &hi)? {
+        if let Some(warning) = light_outside_box(observed, wanted, &lo, &hi)? {
             eprintln!("warning: {warning}");
         }
     }
-    Ok(observed)
+    Ok(())
 }
 
 /// Shares of a camera's pixels outside the smoke box brighter than
