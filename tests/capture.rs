@@ -808,7 +808,7 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
         .arg("--data")
         .arg(dir.join("transforms.json"))
         .args(["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--held-out", "b", "--frames", "0"])
-        .args(["--models", "emission-absorption", "--fit-settings", settings, "--out"])
+        .args(["--models", "emission-absorption", "--study", settings, "--out"])
         .arg(&compared)
         .output()
         .unwrap();

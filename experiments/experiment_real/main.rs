@@ -61,8 +61,8 @@ struct Args {
     /// Image models fitted (none: the baselines only).
     #[arg(long, value_delimiter = ',', default_value = "multiple,single,emission-absorption")]
     models: Vec<ImageModel>,
-    /// Fit settings (JSON; fields not given keep their defaults), for studies.
-    #[arg(long)]
+    /// Fit settings (JSON; fields not given keep their defaults), as `dualphoton fit --capture --study` takes them.
+    #[arg(long, visible_alias = "study")]
     fit_settings: Option<PathBuf>,
     #[command(flatten)]
     #[serde(flatten)]
