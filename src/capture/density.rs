@@ -7,7 +7,7 @@
 use super::settings::{FitSettings, StartShape};
 use crate::error::{Error, Result};
 use crate::image::Image;
-use crate::math::Vec3;
+use crate::math::{inside_box, Vec3};
 use crate::model::{Decoder, Model};
 use crate::optim::Adam;
 use crate::prior::Prior;
@@ -134,7 +134,7 @@ pub(super) fn cube_around(lo: &Vec3, hi: &Vec3, n: usize) -> Grid<f64> {
 /// a level's grid; the decoder's cube reaches past the box's shorter edges.
 pub(super) fn in_box(grid: &Grid<f64>, lo: &Vec3, hi: &Vec3) -> Vec<bool> {
     let all = vec![true; grid.len()];
-    let inside = over_hull(grid, &all, |c| if (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a]) { 1.0 } else { 0.0 });
+    let inside = over_hull(grid, &all, |c| if inside_box(&c, lo, hi) { 1.0 } else { 0.0 });
     inside.iter().map(|&v| v > 0.0).collect()
 }
 

@@ -12,7 +12,7 @@ use super::settings::FitSettings;
 use super::{frames, Capture, Frames};
 use crate::error::{Error, Result};
 use crate::image::Image;
-use crate::math::Vec3;
+use crate::math::{inside_box, Vec3};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -170,8 +170,7 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
 /// behind it (as OpenCV's poses put it when read as OpenGL's), or the box
 /// is out of its image.
 fn box_unseen(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> Option<&'static str> {
-    let p = camera.position;
-    if (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a]) {
+    if inside_box(&camera.position, lo, hi) {
         return Some("it stands inside the smoke box: give the box in the calibration's units, around the smoke alone");
     }
     let mut points: Vec<Vec3> =

@@ -47,6 +47,12 @@ impl Ray {
     }
 }
 
+/// True if `p` lies in the closed axis-aligned box `lo..hi`.
+#[inline]
+pub fn inside_box(p: &Vec3, lo: &Vec3, hi: &Vec3) -> bool {
+    (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a])
+}
+
 /// The parameter interval `[t0, t1]` (with `t0 >= 0`) where `ray` is inside
 /// the axis-aligned box, or `None` if it misses.
 pub fn intersect_box(ray: &Ray, lo: &Vec3, hi: &Vec3) -> Option<(f64, f64)> {
@@ -89,5 +95,16 @@ mod tests {
         assert!((t0 - 4.5).abs() < 1e-12 && (t1 - 5.5).abs() < 1e-12);
         let miss = Ray { origin: Vec3::new(2.0, 0.0, 5.0), dir: Vec3::new(0.0, 0.0, -1.0) };
         assert!(intersect_box(&miss, &Vec3::from_element(-0.5), &Vec3::from_element(0.5)).is_none());
+    }
+
+    #[test]
+    fn the_box_is_closed_and_nan_is_outside() {
+        let (lo, hi) = (Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 1.0, 3.0));
+        assert!(
+            inside_box(&lo, &lo, &hi) && inside_box(&hi, &lo, &hi) && inside_box(&Vec3::new(0.0, 0.5, 2.5), &lo, &hi)
+        );
+        for outside in [Vec3::new(0.0, 0.5, 3.0001), Vec3::new(-1.0001, 0.5, 2.5), Vec3::new(0.0, f64::NAN, 2.5)] {
+            assert!(!inside_box(&outside, &lo, &hi), "{outside:?}");
+        }
     }
 }
