@@ -19,7 +19,7 @@
 
 use crate::ad::dual::{lane, with_tangents};
 use crate::image::Image;
-use crate::math::{inside_box, intersect_box, Ray, Vec3};
+use crate::math::{intersect_box, Ray, Vec3};
 use crate::scene::Camera;
 use crate::volume::Grid;
 use nalgebra::{DMatrix, DVector};
@@ -105,7 +105,7 @@ fn half_voxel(grid: &Grid<f64>) -> f64 {
 /// the lanes carry the density's gradient.
 fn density_at(grid: &Grid<f64>, p: &[D3; 3]) -> D3 {
     let re = Vec3::new(p[0].re, p[1].re, p[2].re);
-    if !inside_box(&re, &grid.lo, &grid.hi) {
+    if !grid.contains(&re) {
         return D3::from_re(0.0);
     }
     let mut lo_i = [0usize; 3];

@@ -47,7 +47,8 @@ impl Ray {
     }
 }
 
-/// True if `p` lies in the closed axis-aligned box `lo..hi`.
+/// True if `p` lies in the closed axis-aligned box `lo..hi` (a grid tests
+/// its own box with `Grid::contains`, the same test on its lookups' path).
 #[inline]
 pub fn inside_box(p: &Vec3, lo: &Vec3, hi: &Vec3) -> bool {
     (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a])

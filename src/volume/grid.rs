@@ -7,7 +7,7 @@
 //! edge value; outside the box it is 0.
 
 use crate::ad::Real;
-use crate::math::{inside_box, Vec3};
+use crate::math::Vec3;
 use crate::par;
 use rayon::prelude::*;
 
@@ -92,11 +92,17 @@ impl<T: Copy> Grid<T> {
         self.lo + Vec3::new((i as f64 + 0.5) * v.x, (j as f64 + 0.5) * v.y, (k as f64 + 0.5) * v.z)
     }
 
+    /// True if `p` lies in the closed box.
+    #[inline]
+    pub fn contains(&self, p: &Vec3) -> bool {
+        (0..3).all(|a| p[a] >= self.lo[a] && p[a] <= self.hi[a])
+    }
+
     /// Per axis (x, y, z): lower voxel index, index step to the upper one
     /// (0 on a one-voxel axis) and the upper one's weight; `None` outside the box.
     #[inline(always)]
     fn axes(&self, p: &Vec3) -> Option<([usize; 3], [usize; 3], [f64; 3])> {
-        if !inside_box(p, &self.lo, &self.hi) {
+        if !self.contains(p) {
             return None;
         }
         let mut lo_i = [0usize; 3];
