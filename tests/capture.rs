@@ -801,13 +801,13 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     assert_eq!(quality.lines().filter(|l| l.contains(",training,")).count(), 2, "{quality}");
 
     // experiment_real takes the same capture with the box and a camera to
-    // hold out; what one frame cannot measure (the photographs' noise over
-    // three) is left empty, never NaN.
+    // hold out, and scores its frames (here its one); what one frame cannot
+    // measure (the photographs' noise over three) is left empty, never NaN.
     let compared = dir.join("compared");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_experiment_real"))
         .arg("--data")
         .arg(dir.join("transforms.json"))
-        .args(["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--held-out", "b", "--frames", "0"])
+        .args(["--box=-0.5,-0.5,-0.5,0.5,0.5,0.5", "--held-out", "b"])
         .args(["--models", "emission-absorption", "--study", settings, "--out"])
         .arg(&compared)
         .output()

@@ -55,9 +55,9 @@ struct Args {
         value_name = "X0,Y0,Z0,X1,Y1,Z1"
     )]
     smoke_box: Option<Vec<f64>>,
-    /// Frames scored.
-    #[arg(long, value_delimiter = ',', default_value = "0,10,20,30,40,50,60,70,80,90,100,110,119")]
-    frames: Vec<usize>,
+    /// Frames scored [default: 0, 10, 20, ... and the capture's last; for ScalarFlow's 120, 0 to 110 and 119].
+    #[arg(long, value_delimiter = ',')]
+    frames: Option<Vec<usize>>,
     /// Image models fitted (none: the baselines only).
     #[arg(long, value_delimiter = ',', default_value = "multiple,single,emission-absorption")]
     models: Vec<ImageModel>,
@@ -87,11 +87,13 @@ fn main() -> std::process::ExitCode {
     experiment::main(run)
 }
 
-fn run(args: Args) -> Result<()> {
+fn run(mut args: Args) -> Result<()> {
     let smoke_box = args.smoke_box.as_deref().map(box_of).transpose().map_err(|e| Error(format!("--box: {e}")))?;
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     capture.smoke_box = smoke_box.or(capture.smoke_box);
     let roles = args.cameras.roles(&capture)?;
+    // The manifest records the frames scored, given or not.
+    let scored = args.frames.get_or_insert_with(|| every_tenth_and_last(capture.frame_count())).clone();
     let held_out = roles.held_out[0];
     let fit_settings =
         FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?.for_capture(capture.frame_count());
@@ -101,16 +103,16 @@ fn run(args: Args) -> Result<()> {
         eprintln!("held-out camera {}: focal lengths x {k:.4} (the camera file)", capture.views[held_out].name);
         capture.views[held_out].camera = capture.views[held_out].camera.zoom(k);
     }
-    frame::check(&capture, &roles, &args.frames, &fit_settings)?;
+    frame::check(&capture, &roles, &scored, &fit_settings)?;
     let nearest = nearest_training_view(&capture, held_out)?;
     let run = Run::start(&args.out)?;
     reuse::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
-    let truth = frames::read(test, &args.frames)?;
-    let neighbour = frames::read(&capture.views[nearest], &args.frames)?;
+    let truth = frames::read(test, &scored)?;
+    let neighbour = frames::read(&capture.views[nearest], &scored)?;
     let mut rows = Vec::new();
-    for ((&frame, truth), neighbour) in args.frames.iter().zip(&truth).zip(&neighbour) {
+    for ((&frame, truth), neighbour) in scored.iter().zip(&truth).zip(&neighbour) {
         let black = Image::zeros(truth.width, truth.height);
         let nearest_name = format!("training view {} as is", capture.views[nearest].name);
         for (prediction, image) in [("all black".to_string(), &black), (nearest_name, neighbour)] {
@@ -124,8 +126,8 @@ fn run(args: Args) -> Result<()> {
     if !args.models.is_empty() {
         let views = run.path("views");
         let (fits, rig) =
-            models::run(&capture, &roles, &args.frames, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
-        let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| args.frames.contains(&r.frame)).collect();
+            models::run(&capture, &roles, &scored, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
+        let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
              the held-out camera rendered at full resolution and scored as above. Mean over frames:\n\n",
@@ -139,7 +141,7 @@ fn run(args: Args) -> Result<()> {
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
         models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows)?;
         let names: Vec<&str> = args.models.iter().map(|m| m.name()).collect();
-        let photographs: Vec<(usize, &Image)> = args.frames.iter().copied().zip(&truth).collect();
+        let photographs: Vec<(usize, &Image)> = scored.iter().copied().zip(&truth).collect();
         figures::compose(&args.out, &views, &names, &photographs)?;
     }
     std::fs::write(run.path("summary.md"), md)?;
@@ -147,6 +149,15 @@ fn run(args: Args) -> Result<()> {
 }
 
 /// The other camera whose viewing direction is closest to camera `held_out`'s.
+/// Frames 0, 10, 20, ... below `count`, and the last.
+fn every_tenth_and_last(count: usize) -> Vec<usize> {
+    let mut frames: Vec<usize> = (0..count).step_by(10).collect();
+    if count > 0 && frames.last() != Some(&(count - 1)) {
+        frames.push(count - 1);
+    }
+    frames
+}
+
 fn nearest_training_view(capture: &Capture, held_out: usize) -> Result<usize> {
     let forward = |v: usize| capture.views[v].camera.basis().2;
     (0..capture.views.len())
@@ -182,4 +193,18 @@ fn summary(rows: &[Row], held_out: &str, protocol: &Protocol) -> String {
     });
     md += &markdown_table(&["prediction", "PSNR (dB)", "relative RMSE (%)", "frames"], table);
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_frames_are_every_tenth_and_the_last() {
+        let scalarflow: Vec<usize> = (0..12).map(|k| 10 * k).chain([119]).collect();
+        assert_eq!(every_tenth_and_last(120), scalarflow);
+        assert_eq!(every_tenth_and_last(21), [0, 10, 20]);
+        assert_eq!(every_tenth_and_last(2), [0, 1]);
+        assert_eq!(every_tenth_and_last(1), [0]);
+    }
 }
