@@ -148,7 +148,6 @@ fn run(mut args: Args) -> Result<()> {
     run.write_manifest(&args)
 }
 
-/// The other camera whose viewing direction is closest to camera `held_out`'s.
 /// Frames 0, 10, 20, ... below `count`, and the last.
 fn every_tenth_and_last(count: usize) -> Vec<usize> {
     let mut frames: Vec<usize> = (0..count).step_by(10).collect();
@@ -158,6 +157,7 @@ fn every_tenth_and_last(count: usize) -> Vec<usize> {
     frames
 }
 
+/// The other camera whose viewing direction is closest to camera `held_out`'s.
 fn nearest_training_view(capture: &Capture, held_out: usize) -> Result<usize> {
     let forward = |v: usize| capture.views[v].camera.basis().2;
     (0..capture.views.len())

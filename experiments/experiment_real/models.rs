@@ -219,17 +219,17 @@ pub fn run(
                 rel_rmse_expected: expected.rel_rmse,
             };
             // A score is undefined on a black photograph (relative RMSE) or an exact one (PSNR).
-            let shown = |v: Option<f64>, scale: f64, decimals: usize| {
+            let show = |v: Option<f64>, scale: f64, decimals: usize| {
                 v.map_or("undefined".to_string(), |v| format!("{:.*}", decimals, scale * v))
             };
             eprintln!(
                 "frame {frame} {}: held-out PSNR {} dB, relative RMSE {} % (expected view {} dB, {} %), \
                  fit {:.0} s, render {:.0} s",
                 model.name(),
-                shown(held.score.psnr, 1.0, 2),
-                shown(held.score.rel_rmse, 100.0, 1),
-                shown(expected.psnr, 1.0, 2),
-                shown(expected.rel_rmse, 100.0, 1),
+                show(held.score.psnr, 1.0, 2),
+                show(held.score.rel_rmse, 100.0, 1),
+                show(expected.psnr, 1.0, 2),
+                show(expected.rel_rmse, 100.0, 1),
                 row.fit_s,
                 row.render_s
             );

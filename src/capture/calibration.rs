@@ -198,10 +198,9 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
             None => groups.push(vec![entry]),
         }
     }
-    if groups.iter().all(|g| g.len() == 1) {
+    let Some(repeated) = groups.iter().find(|g| g.len() > 1) else {
         return Ok(groups.into_iter().flatten().map(|e| (e.file, e.camera, e.frames, false)).collect());
-    }
-    let repeated = groups.iter().find(|g| g.len() > 1).map_or(&groups[0], |g| g);
+    };
     let single_image = |e: &Entry| matches!(&e.frames, Frames::Images(i) if i.len() == 1);
     if let Some(e) = groups.iter().flatten().find(|e| !single_image(e)) {
         bail!(
