@@ -447,6 +447,7 @@ fn fit_checks_every_option_before_any_work() {
         ),
         (vec!["--study".into(), dir.join("missing.json").to_str().unwrap().into()], "--study"),
         (vec!["--images".into(), dir.join("nowhere").to_str().unwrap().into()], "--images"),
+        (vec!["--box=-1,-1,-1,1,1,1".into()], "--box"),
     ];
     for (extra, field) in cases {
         let mut args = vec!["fit", "--scene", &scene, "--out", out.to_str().unwrap(), "--prior", "none"];

@@ -22,7 +22,7 @@ use dualphoton::capture::frame::{self, CameraChoice};
 use dualphoton::capture::reuse;
 use dualphoton::capture::scalarflow_cameras::held_out_zoom;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
-use dualphoton::capture::{box_of, calibration, frames, protocol::Protocol, Capture};
+use dualphoton::capture::{calibration, frames, protocol::Protocol, BoxChoice, Capture};
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
@@ -44,17 +44,9 @@ struct Args {
     /// focal length there over the calibration's, divided by the training cameras' geometric mean of the same.
     #[arg(long)]
     held_out_focal_lengths: Option<PathBuf>,
-    /// The smoke box, where the density lives, in the capture's units: x0,y0,z0,x1,y1,z1 (lower corner,
-    /// upper corner). Default: the calibration's (info.json's voxel_matrix and voxel_scale); a
-    /// transforms.json has none.
-    #[arg(
-        long = "box",
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        action = clap::ArgAction::Set,
-        value_name = "X0,Y0,Z0,X1,Y1,Z1"
-    )]
-    smoke_box: Option<Vec<f64>>,
+    #[command(flatten)]
+    #[serde(flatten)]
+    smoke_box: BoxChoice,
     /// Frames scored [default: 0, 10, 20, ... and the capture's last; for ScalarFlow's 120, 0 to 110 and 119].
     #[arg(long, value_delimiter = ',')]
     frames: Option<Vec<usize>>,
@@ -88,7 +80,7 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(mut args: Args) -> Result<()> {
-    let smoke_box = args.smoke_box.as_deref().map(box_of).transpose().map_err(|e| Error(format!("--box: {e}")))?;
+    let smoke_box = args.smoke_box.corners()?;
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     capture.smoke_box = smoke_box.or(capture.smoke_box);
     let roles = args.cameras.roles(&capture)?;

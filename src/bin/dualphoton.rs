@@ -2,6 +2,7 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use dualphoton::capture::settings::FitSettings;
+use dualphoton::capture::BoxChoice;
 use dualphoton::data::{plume, scalarflow};
 use dualphoton::error::{Error, Result};
 use dualphoton::eval::fit_quality::{fit_quality, fit_quality_markdown, FitQualitySettings, FitTarget};
@@ -173,18 +174,9 @@ struct FitArgs {
     /// The frame of --capture to fit.
     #[arg(long, requires = "capture")]
     frame: Option<usize>,
-    /// The smoke box of --capture, where the density lives, in the capture's units: x0,y0,z0,x1,y1,z1
-    /// (lower corner, upper corner). Default: the calibration's (info.json's voxel_matrix and
-    /// voxel_scale); a transforms.json has none.
-    #[arg(
-        long = "box",
-        requires = "capture",
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        action = clap::ArgAction::Set,
-        value_name = "X0,Y0,Z0,X1,Y1,Z1"
-    )]
-    smoke_box: Option<Vec<f64>>,
+    /// The smoke box of --capture.
+    #[command(flatten)]
+    smoke_box: BoxChoice,
     /// ScalarFlow's own camera file (GlobTrans's scalaFlow_cameras.json): each camera of --capture gets
     /// the focal length of its vertical field of view instead of the calibration's horizontal one.
     #[arg(long, requires = "capture")]
@@ -337,10 +329,7 @@ fn fit(a: FitArgs) -> Result<()> {
     set_threads(a.threads)?;
     if let Some(capture) = &a.capture {
         let frame = a.frame.ok_or_else(|| Error::new("--frame: give the frame of --capture to fit"))?;
-        let smoke_box = match &a.smoke_box {
-            Some(corners) => Some(dualphoton::capture::box_of(corners).map_err(|e| Error(format!("--box: {e}")))?),
-            None => None,
-        };
+        let smoke_box = a.smoke_box.corners()?;
         let settings = FitSettings::read_option(a.study.as_deref(), "--study")?;
         let settings = FitSettings { seed: a.seed.unwrap_or(settings.seed), ..settings };
         return dualphoton::capture::outputs::fit_and_write(
@@ -352,6 +341,9 @@ fn fit(a: FitArgs) -> Result<()> {
             a.rig.as_deref(),
             &a.out,
         );
+    }
+    if a.smoke_box.smoke_box.is_some() {
+        return Err(Error::new("--box: the smoke box of a --capture; a --scene gives its own"));
     }
     a.method.check()?;
     let (Some(scene), Some(images)) = (&a.scene, &a.images) else {

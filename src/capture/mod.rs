@@ -104,6 +104,30 @@ pub fn box_of(corners: &[f64]) -> crate::Result<(Vec3, Vec3)> {
     }
 }
 
+/// The `--box` option of the commands that fit a capture: the smoke box
+/// given on the command line, in place of the calibration's.
+#[derive(Clone, Debug, Default, clap::Args, serde::Serialize)]
+pub struct BoxChoice {
+    /// The smoke box, where the density lives, in the capture's units: x0,y0,z0,x1,y1,z1 (lower corner,
+    /// upper corner). Default: the calibration's (info.json's voxel_matrix and voxel_scale); a
+    /// transforms.json has none.
+    #[arg(
+        long = "box",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        action = clap::ArgAction::Set,
+        value_name = "X0,Y0,Z0,X1,Y1,Z1"
+    )]
+    pub smoke_box: Option<Vec<f64>>,
+}
+
+impl BoxChoice {
+    /// The box given ([`box_of`]), or `None`; errors name `--box`.
+    pub fn corners(&self) -> crate::Result<Option<(Vec3, Vec3)>> {
+        self.smoke_box.as_deref().map(box_of).transpose().map_err(|e| crate::Error(format!("--box: {e}")))
+    }
+}
+
 /// A capture: its cameras and, where the calibration gives it, the box the
 /// smoke is in (world units of the calibration).
 #[derive(Clone, Debug, PartialEq)]
