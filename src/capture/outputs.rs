@@ -108,9 +108,6 @@ pub fn fit_and_write(
 ) -> Result<()> {
     let mut capture = calibration::open(calibration_path, focal_lengths)?;
     capture.smoke_box = smoke_box.or(capture.smoke_box);
-    if capture.smoke_box.is_none() {
-        return Err(Error("--box: the calibration gives no smoke box; give x0,y0,z0,x1,y1,z1".into()));
-    }
     let settings = &settings.for_capture(capture.frame_count());
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
