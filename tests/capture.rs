@@ -186,6 +186,12 @@ fn a_transforms_json_listing_each_camera_once_per_frame_is_read_as_its_cameras()
         "transform_matrix": looking_at_origin(1.0, 2.0)}),
     ];
     refused(folder, "frames[2]: names a folder of frames, but this file lists cameras once per frame");
+    // One camera moving through the frames (D-NeRF's monocular scenes): every entry its own pose and time.
+    let moving: Vec<Value> = (0..2).map(|c| entry(c, c, Some(0.5 * c as f64), true)).collect();
+    refused(moving, "the cameras of frames[0] and frames[1] see different times (0 and 0.5)");
+    // Different cameras at one instant read as before.
+    let still: Vec<Value> = (0..2).map(|c| entry(c, 0, Some(0.5), true)).collect();
+    assert_eq!(load(still).unwrap().views.len(), 2);
 }
 
 #[test]

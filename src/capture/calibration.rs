@@ -189,7 +189,9 @@ struct Entry {
 /// each camera named by its images' folder (`cam0/000060.png` is `cam0`)
 /// or, where the cameras' images share one, `camera0`, `camera1`, ... in
 /// file order. Errors: such an entry naming a folder, cameras with
-/// different numbers of frames or different times.
+/// different numbers of frames or different times, and cameras that are
+/// each listed once at different times (one camera moving with the smoke,
+/// as D-NeRF's monocular scenes: no two views of one instant).
 fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>> {
     let mut groups: Vec<Vec<Entry>> = Vec::new();
     for entry in entries {
@@ -199,6 +201,17 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
         }
     }
     let Some(repeated) = groups.iter().find(|g| g.len() > 1) else {
+        let timed: Vec<&Entry> = groups.iter().flatten().filter(|e| e.time.is_some()).collect();
+        if let Some(other) = timed.iter().find(|e| e.time != timed[0].time) {
+            bail!(
+                "the cameras of {} and {} see different times ({} and {}): dualphoton fits cameras that see the \
+                 same instant, and a camera moving with the smoke (a monocular capture) gives one view of each",
+                timed[0].path,
+                other.path,
+                timed[0].time.unwrap_or_default(),
+                other.time.unwrap_or_default()
+            );
+        }
         return Ok(groups.into_iter().flatten().map(|e| (e.file, e.camera, e.frames, false)).collect());
     };
     let single_image = |e: &Entry| matches!(&e.frames, Frames::Images(i) if i.len() == 1);
