@@ -821,6 +821,9 @@ fn fit_takes_a_transforms_json_with_the_users_box_and_settings() {
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let summary = std::fs::read_to_string(compared.join("summary.md")).unwrap();
     assert!(summary.contains("crop rows 0..48 and columns 0..64") && !summary.contains("NaN"), "{summary}");
+    assert!(summary.contains("whole-image protocol") && !summary.contains("field's"), "{summary}");
+    let plot = std::fs::read_to_string(compared.join("psnr_per_frame.svg")).unwrap();
+    assert!(plot.contains("whole-image protocol") && !plot.contains("field"));
     assert!(summary.contains("| emission-absorption |"), "{summary}");
     // Its figures show the frames it scored, though none is ScalarFlow's figure frames.
     assert!(compared.join("held_out_views.svg").exists() && compared.join("density_slices.svg").exists());

@@ -131,7 +131,7 @@ fn run(mut args: Args) -> Result<()> {
         }
         let nearest_rows: Vec<(usize, f64)> =
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
-        models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows)?;
+        models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows, &protocol)?;
         let names: Vec<&str> = args.models.iter().map(|m| m.name()).collect();
         let photographs: Vec<(usize, &Image)> = scored.iter().copied().zip(&truth).collect();
         figures::compose(&args.out, &views, &names, &photographs)?;
@@ -161,8 +161,9 @@ fn nearest_training_view(capture: &Capture, held_out: usize) -> Result<usize> {
 fn summary(rows: &[Row], held_out: &str, protocol: &Protocol) -> String {
     let mut md = format!(
         "# Real capture: held-out camera {held_out}\n\n\
-         Predictions that need no reconstruction, scored under the field's protocol \
+         Predictions that need no reconstruction, scored under {} \
          ({}, PSNR = -10 log10 MSE of code value / 255). Mean over frames:\n\n",
+        protocol.name(),
         protocol.describe()
     );
     let mut names: Vec<&str> = Vec::new();

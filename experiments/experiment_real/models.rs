@@ -9,7 +9,7 @@ use dualphoton::capture::expected_view;
 use dualphoton::capture::fit::training_rmse;
 use dualphoton::capture::frame::{fit_frame, read, Roles};
 use dualphoton::capture::observe::temporal_noise;
-use dualphoton::capture::protocol::{ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
+use dualphoton::capture::protocol::{Protocol, ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
 use dualphoton::capture::reuse;
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
@@ -356,7 +356,13 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
 }
 
 /// `psnr_per_frame.svg`: the held-out PSNR of every model per frame.
-pub fn plot(path: &Path, rows: &[FitResult], models: &[ImageModel], floor: &[(usize, f64)]) -> Result<()> {
+pub fn plot(
+    path: &Path,
+    rows: &[FitResult],
+    models: &[ImageModel],
+    floor: &[(usize, f64)],
+    protocol: &Protocol,
+) -> Result<()> {
     let mut series: Vec<Series> = models
         .iter()
         .map(|m| Series {
@@ -374,7 +380,7 @@ pub fn plot(path: &Path, rows: &[FitResult], models: &[ImageModel], floor: &[(us
         points: floor.iter().map(|&(f, p)| (f as f64, p)).collect(),
         markers: false,
     });
-    let axes =
-        Axes { title: "Held-out camera, the field's protocol", x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
+    let title = format!("Held-out camera, {}", protocol.name());
+    let axes = Axes { title: &title, x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
     line_chart(path, &axes, &series)
 }

@@ -97,7 +97,7 @@ pub fn expected_view(prediction: &Image, principal: [f64; 2], moves: &[Move]) ->
 
 /// The expected view of a held-out `camera` whose render is `prediction`,
 /// with the spread of `fitted`'s training corrections, scored against its
-/// photograph `truth` under the field's protocol.
+/// photograph `truth` under its protocol.
 pub fn score(camera: &Camera, prediction: &Image, fitted: &Fit, truth: &Image) -> Score {
     let [_, _, cx, cy] = camera.intrinsics();
     let view = expected_view(prediction, [cx, cy], &moves(&fitted.offsets_px(), &fitted.zooms));

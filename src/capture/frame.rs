@@ -1,7 +1,7 @@
 //! One frame of a capture, end to end: every check before any work, the
 //! training cameras' images at the working resolution, the fit, and each
 //! held-out camera rendered at the capture's full resolution and scored
-//! under the field's protocol. `dualphoton fit --capture` and
+//! under its protocol (`Protocol::for_size`). `dualphoton fit --capture` and
 //! `experiment_real` both go through here.
 
 use super::fit::{fit, render_view, Fit, FitRow};
@@ -97,7 +97,7 @@ pub struct HeldOutView {
     pub view: usize,
     /// The fitted scene seen by it, at the capture's resolution.
     pub prediction: Image,
-    /// Against its photograph under the field's protocol.
+    /// Against its photograph under its protocol.
     pub score: Score,
     /// What a gain or a shift known only from its photograph would change
     /// (a diagnostic, never used to choose anything).
@@ -248,7 +248,7 @@ pub fn fit_frame(
 }
 
 /// Held-out camera `v` of `capture` rendered from `fitted` at the capture's
-/// resolution and scored against its photograph `truth` under the field's protocol.
+/// resolution and scored against its photograph `truth` under its protocol.
 pub fn held_out_view(capture: &Capture, v: usize, fitted: &Fit, truth: &Image) -> Result<HeldOutView> {
     let camera = &capture.views[v].camera;
     let start = Instant::now();

@@ -241,10 +241,11 @@ fn write(
             rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
         });
         eprintln!(
-            "held-out camera {}: PSNR {} dB, relative RMSE {} (the field's protocol)",
+            "held-out camera {}: PSNR {} dB, relative RMSE {} ({})",
             view.name,
             held.score.psnr.map_or("-".into(), |x| format!("{x:.2}")),
-            held.score.rel_rmse.map_or("-".into(), |x| format!("{:.1} %", 100.0 * x))
+            held.score.rel_rmse.map_or("-".into(), |x| format!("{:.1} %", 100.0 * x)),
+            protocol.name()
         );
         let [dx, dy] = held.oracle.shift;
         eprintln!(

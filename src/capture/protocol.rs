@@ -32,6 +32,16 @@ impl Protocol {
         }
     }
 
+    /// Its name in a sentence: "the field's protocol" for ScalarFlow's
+    /// frames, which is no field's for images of other sizes.
+    pub fn name(&self) -> &'static str {
+        if *self == Protocol::SCALARFLOW {
+            "the field's protocol"
+        } else {
+            "the whole-image protocol"
+        }
+    }
+
     /// What the metrics see, in words: "half resolution by area averaging,
     /// crop rows 90..960 and columns 45..540".
     pub fn describe(&self) -> String {
@@ -300,5 +310,8 @@ mod tests {
         let scalarflow = "half resolution by area averaging, crop rows 90..960 and columns 45..540";
         assert_eq!(Protocol::for_size(1080, 1920).describe(), scalarflow);
         assert_eq!(Protocol::for_size(64, 48).describe().split(", ").nth(1), Some("crop rows 0..24 and columns 0..32"));
+        // Only ScalarFlow's frames are scored as the field scores them.
+        assert_eq!(Protocol::for_size(1080, 1920).name(), "the field's protocol");
+        assert_eq!(Protocol::for_size(64, 48).name(), "the whole-image protocol");
     }
 }
