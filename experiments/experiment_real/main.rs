@@ -116,9 +116,10 @@ fn run(mut args: Args) -> Result<()> {
     write_rows(&run.path("baselines.csv"), &rows)?;
     let mut md = summary(&rows, &test.name, &protocol);
     if !args.models.is_empty() {
+        let photographs: Vec<(usize, &Image)> = scored.iter().copied().zip(&truth).collect();
         let views = run.path("views");
         let (fits, rig) =
-            models::run(&capture, &roles, &scored, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
+            models::run(&capture, &roles, &photographs, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
@@ -133,7 +134,6 @@ fn run(mut args: Args) -> Result<()> {
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
         models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows, &protocol)?;
         let names: Vec<&str> = args.models.iter().map(|m| m.name()).collect();
-        let photographs: Vec<(usize, &Image)> = scored.iter().copied().zip(&truth).collect();
         figures::compose(&args.out, &views, &names, &photographs)?;
     }
     std::fs::write(run.path("summary.md"), md)?;

@@ -7,7 +7,7 @@
 use crate::figures::{self, figure_frames};
 use dualphoton::capture::expected_view;
 use dualphoton::capture::fit::training_rmse;
-use dualphoton::capture::frame::{fit_frame, read, Roles};
+use dualphoton::capture::frame::{fit_frame, read_beside, Roles};
 use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::protocol::{Protocol, ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
 use dualphoton::capture::reuse;
@@ -15,6 +15,7 @@ use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
+use dualphoton::image::Image;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
@@ -147,12 +148,13 @@ pub fn rig_note(rig: &Rig, settings: &FitSettings) -> String {
     md
 }
 
-/// Fits every frame of `frames` under every model of `models`, scoring the
-/// one held-out camera of `roles`.
+/// Fits every frame of `photographs` under every model of `models`,
+/// scoring the one held-out camera of `roles` against its photograph there
+/// (read once for the baselines and these).
 pub fn run(
     capture: &Capture,
     roles: &Roles,
-    frames: &[usize],
+    photographs: &[(usize, &Image)],
     models: &[ImageModel],
     base: &FitSettings,
     csv: &Path,
@@ -162,10 +164,12 @@ pub fn run(
     let done = |rows: &[FitResult], frame: usize, model: ImageModel| {
         rows.iter().any(|r| r.frame == frame && r.model == model.name())
     };
+    let frames: Vec<usize> = photographs.iter().map(|&(f, _)| f).collect();
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
     let rig = reuse::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
-    let shown = figure_frames(frames);
-    for images in read(capture, roles, &todo, base.factor)? {
+    let shown = figure_frames(&frames);
+    let held = photographs.iter().filter(|(f, _)| todo.contains(f)).map(|&(_, t)| vec![t.clone()]);
+    for images in read_beside(capture, roles, &todo, base.factor, held.collect())? {
         let frame = images.frame;
         let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
         let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();

@@ -188,13 +188,26 @@ fn box_unseen(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> Option<&'s
 
 /// The images of `wanted` frames (read in one pass per camera).
 pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -> Result<Vec<FrameImages>> {
-    let training = observe(capture, &roles.training, wanted, factor)?;
     let mut held: Vec<Vec<Image>> = vec![Vec::new(); wanted.len()];
     for &v in &roles.held_out {
         for (per_frame, image) in held.iter_mut().zip(frames::read(&capture.views[v], wanted)?) {
             per_frame.push(image);
         }
     }
+    read_beside(capture, roles, wanted, factor, held)
+}
+
+/// [`read`] where the held-out photographs were read already: `held[k]`
+/// holds frame `wanted[k]`'s, one per held-out camera in the order of
+/// `roles`.
+pub fn read_beside(
+    capture: &Capture,
+    roles: &Roles,
+    wanted: &[usize],
+    factor: usize,
+    held: Vec<Vec<Image>>,
+) -> Result<Vec<FrameImages>> {
+    let training = observe(capture, &roles.training, wanted, factor)?;
     // The held-out photographs are checked as the training ones are: a
     // background left in would otherwise show only as a low score.
     let held_seen = Observed {

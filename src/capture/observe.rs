@@ -38,8 +38,17 @@ pub struct Observed {
 }
 
 /// Frames `wanted` of cameras `views` of `capture`, downsampled by
-/// `factor` (area averaging; a partial block at an edge is dropped).
+/// `factor` (area averaging; a partial block at an edge is dropped), and
+/// checked for light outside the smoke box.
 pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize) -> Result<Observed> {
+    let observed = downsampled(capture, views, wanted, factor)?;
+    check_light_outside_box(capture, &observed, wanted)?;
+    Ok(observed)
+}
+
+/// [`observe`] without the check: for frames read again beside one that
+/// was checked, which would repeat its warning.
+fn downsampled(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize) -> Result<Observed> {
     let mut images = vec![Vec::with_capacity(views.len()); wanted.len()];
     let mut cameras = Vec::with_capacity(views.len());
     for &v in views {
@@ -50,9 +59,7 @@ pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usi
         cameras.push(view.camera.downsample(factor));
     }
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
-    let observed = Observed { cameras, images, names };
-    check_light_outside_box(capture, &observed, wanted)?;
-    Ok(observed)
+    Ok(Observed { cameras, images, names })
 }
 
 /// [`light_outside_box`] on `observed` (frames `wanted` of `capture`), its
@@ -107,14 +114,15 @@ pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &
 /// resolution: the root mean square over every pixel of `views` (code
 /// value / 255) of [`noise_of_three`] on three consecutive frames (the
 /// frame and its neighbours, shifted inwards at the clip's ends). `None`
-/// for a capture of fewer than three frames.
+/// for a capture of fewer than three frames. Not checked for light outside
+/// the box: `frame` is checked where it is fitted.
 pub fn temporal_noise(capture: &Capture, views: &[usize], frame: usize, factor: usize) -> Result<Option<f64>> {
     let count = capture.frame_count();
     if count < 3 {
         return Ok(None);
     }
     let first = frame.saturating_sub(1).min(count - 3);
-    let seen = observe(capture, views, &[first, first + 1, first + 2], factor)?;
+    let seen = downsampled(capture, views, &[first, first + 1, first + 2], factor)?;
     Ok(Some(noise_of_three([&seen.images[0], &seen.images[1], &seen.images[2]])))
 }
 
