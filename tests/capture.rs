@@ -189,6 +189,10 @@ fn a_transforms_json_listing_each_camera_once_per_frame_is_read_as_its_cameras()
     // One camera moving through the frames (D-NeRF's monocular scenes): every entry its own pose and time.
     let moving: Vec<Value> = (0..2).map(|c| entry(c, c, Some(0.5 * c as f64), true)).collect();
     refused(moving, "the cameras of frames[0] and frames[1] see different times (0 and 0.5)");
+    // A fixed camera whose pose moves a little from frame to frame (registered image by image) is told why.
+    let mut jittered = vec![entry(0, 0, Some(0.0), true), entry(1, 0, Some(0.0), true), entry(1, 1, Some(0.5), true)];
+    jittered.push(json!({"file_path": "cam0/1.png", "transform_matrix": looking_at_origin(0.001, 2.0), "time": 0.5}));
+    refused(jittered, "needs the same transform_matrix and intrinsics in each of its entries");
     // Different cameras at one instant read as before.
     let still: Vec<Value> = (0..2).map(|c| entry(c, 0, Some(0.5), true)).collect();
     assert_eq!(load(still).unwrap().views.len(), 2);

@@ -193,6 +193,9 @@ struct Entry {
 /// each listed once at different times (one camera moving with the smoke,
 /// as D-NeRF's monocular scenes: no two views of one instant).
 fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>> {
+    let one_pose =
+        "a fixed camera listed once per frame needs the same transform_matrix and intrinsics in each of its \
+                    entries (poses registered frame by frame differ)";
     let mut groups: Vec<Vec<Entry>> = Vec::new();
     for entry in entries {
         match groups.iter_mut().find(|g| g[0].camera == entry.camera) {
@@ -205,7 +208,8 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
         if let Some(other) = timed.iter().find(|e| e.time != timed[0].time) {
             bail!(
                 "the cameras of {} and {} see different times ({} and {}): dualphoton fits cameras that see the \
-                 same instant, and a camera moving with the smoke (a monocular capture) gives one view of each",
+                 same instant, so a camera moving with the smoke (a monocular capture) cannot be fitted, and \
+                 {one_pose}",
                 timed[0].path,
                 other.path,
                 timed[0].time.unwrap_or_default(),
@@ -236,7 +240,7 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
         if group.len() != first.len() {
             bail!(
                 "the camera of {} is listed for {} frames, the camera of {} for {}: every camera needs an image \
-                 of every frame",
+                 of every frame, and {one_pose}",
                 first[0].path,
                 first.len(),
                 group[0].path,
