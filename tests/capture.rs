@@ -193,6 +193,10 @@ fn a_transforms_json_listing_each_camera_once_per_frame_is_read_as_its_cameras()
     let mut jittered = vec![entry(0, 0, Some(0.0), true), entry(1, 0, Some(0.0), true), entry(1, 1, Some(0.5), true)];
     jittered.push(json!({"file_path": "cam0/1.png", "transform_matrix": looking_at_origin(0.001, 2.0), "time": 0.5}));
     refused(jittered, "needs the same transform_matrix and intrinsics in each of its entries");
+    // Without times nothing tells it from cameras of one instant: it reads so (with a warning).
+    let mut untimed = vec![entry(0, 0, None, true), entry(1, 0, None, true)];
+    untimed.push(json!({"file_path": "cam0/1.png", "transform_matrix": looking_at_origin(0.001, 2.0)}));
+    assert_eq!(load(untimed).unwrap().views.len(), 3);
     // Different cameras at one instant read as before.
     let still: Vec<Value> = (0..2).map(|c| entry(c, 0, Some(0.5), true)).collect();
     assert_eq!(load(still).unwrap().views.len(), 2);

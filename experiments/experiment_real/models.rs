@@ -15,6 +15,7 @@ use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
+use dualphoton::eval::metrics::show_score;
 use dualphoton::image::Image;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
@@ -222,18 +223,14 @@ pub fn run(
                 psnr_expected_db: expected.psnr,
                 rel_rmse_expected: expected.rel_rmse,
             };
-            // A score is undefined on a black photograph (relative RMSE) or an exact one (PSNR).
-            let show = |v: Option<f64>, scale: f64, decimals: usize| {
-                v.map_or("undefined".to_string(), |v| format!("{:.*}", decimals, scale * v))
-            };
             eprintln!(
-                "frame {frame} {}: held-out PSNR {} dB, relative RMSE {} % (expected view {} dB, {} %), \
-                 fit {:.0} s, render {:.0} s",
+                "frame {frame} {}: held-out PSNR {}, relative RMSE {} (expected view {}, {}), fit {:.0} s, \
+                 render {:.0} s",
                 model.name(),
-                show(held.score.psnr, 1.0, 2),
-                show(held.score.rel_rmse, 100.0, 1),
-                show(expected.psnr, 1.0, 2),
-                show(expected.rel_rmse, 100.0, 1),
+                show_score(held.score.psnr, 1.0, 2, " dB"),
+                show_score(held.score.rel_rmse, 100.0, 1, " %"),
+                show_score(expected.psnr, 1.0, 2, " dB"),
+                show_score(expected.rel_rmse, 100.0, 1, " %"),
                 row.fit_s,
                 row.render_s
             );

@@ -40,6 +40,21 @@ const MAX_BYTES: u64 = 64 << 20;
 /// How far a rotation's columns may be from orthonormal.
 const ROTATION_TOLERANCE: f64 = 1e-3;
 
+/// Two cameras whose centres stand closer than this fraction of the rig's
+/// width (the largest distance between two cameras' centres) ...
+const NEARLY_ONE_PLACE: f64 = 0.01;
+
+/// ... and whose optical axes are closer than this many degrees look like
+/// one camera listed twice. ScalarFlow's two calibrations of its rig put
+/// each camera at one place and turn it by at most 0.32 degrees; its
+/// closest distinct cameras stand 25 % of the rig's width and 22 degrees
+/// apart.
+const NEARLY_ONE_DIRECTION_DEG: f64 = 1.0;
+
+/// Why a fixed camera's entries must agree, for the errors and the warning.
+const ONE_POSE: &str = "a fixed camera listed once per frame needs the same transform_matrix and intrinsics in \
+                        each of its entries (poses registered frame by frame differ)";
+
 /// `path` itself if it is a file, else the `info.json` (or, failing that,
 /// the `transforms.json`) in the folder `path`.
 pub fn locate(path: &Path) -> PathBuf {
@@ -87,6 +102,9 @@ pub fn load(path: &Path) -> Result<Capture> {
     let capture = capture.map_err(|e| Error(format!("calibration {shown}: {e}")))?;
     if capture.views.is_empty() {
         bail!("calibration {shown}: no cameras");
+    }
+    if let Some(warning) = nearly_one_camera(&capture.views) {
+        eprintln!("warning: calibration {shown}: {warning}");
     }
     Ok(capture)
 }
@@ -193,9 +211,6 @@ struct Entry {
 /// each listed once at different times (one camera moving with the smoke,
 /// as D-NeRF's monocular scenes: no two views of one instant).
 fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>> {
-    let one_pose =
-        "a fixed camera listed once per frame needs the same transform_matrix and intrinsics in each of its \
-                    entries (poses registered frame by frame differ)";
     let mut groups: Vec<Vec<Entry>> = Vec::new();
     for entry in entries {
         match groups.iter_mut().find(|g| g[0].camera == entry.camera) {
@@ -209,7 +224,7 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
             bail!(
                 "the cameras of {} and {} see different times ({} and {}): dualphoton fits cameras that see the \
                  same instant, so a camera moving with the smoke (a monocular capture) cannot be fitted, and \
-                 {one_pose}",
+                 {ONE_POSE}",
                 timed[0].path,
                 other.path,
                 timed[0].time.unwrap_or_default(),
@@ -240,7 +255,7 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
         if group.len() != first.len() {
             bail!(
                 "the camera of {} is listed for {} frames, the camera of {} for {}: every camera needs an image \
-                 of every frame, and {one_pose}",
+                 of every frame, and {ONE_POSE}",
                 first[0].path,
                 first.len(),
                 group[0].path,
@@ -280,6 +295,43 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
             (name, camera, Frames::Images(images.collect()), false)
         })
         .collect())
+}
+
+/// A warning where two of `views`' cameras stand at nearly one place and
+/// look nearly one way ([`NEARLY_ONE_PLACE`], [`NEARLY_ONE_DIRECTION_DEG`]):
+/// most likely one fixed camera whose images were registered one by one
+/// and listed without a `time`, which reads as several cameras of one
+/// instant. Not an error: two cameras may stand side by side.
+fn nearly_one_camera(views: &[View]) -> Option<String> {
+    let centre = |v: &View| v.camera.position;
+    let width =
+        views.iter().flat_map(|a| views.iter().map(move |b| (centre(a) - centre(b)).norm())).fold(0.0, f64::max);
+    if width == 0.0 {
+        return None;
+    }
+    let mut pairs = Vec::new();
+    for (i, a) in views.iter().enumerate() {
+        for b in &views[i + 1..] {
+            let apart = (centre(a) - centre(b)).norm() / width;
+            let turned = a.camera.basis().2.angle(&b.camera.basis().2).to_degrees();
+            if apart < NEARLY_ONE_PLACE && turned < NEARLY_ONE_DIRECTION_DEG {
+                pairs.push((a, b, apart, turned));
+            }
+        }
+    }
+    let &(a, b, apart, turned) = pairs.first()?;
+    let others = match pairs.len() - 1 {
+        0 => String::new(),
+        1 => ", as does one other pair".into(),
+        n => format!(", as do {n} other pairs"),
+    };
+    Some(format!(
+        "the cameras {} and {} stand {:.2} % of the rig's width apart and look {turned:.2} degrees apart{others}: \
+         they are read as two cameras seeing one instant; if they are one camera, {ONE_POSE}",
+        a.name,
+        b.name,
+        100.0 * apart
+    ))
 }
 
 /// The lens models of a `transforms.json` (nerfstudio's `camera_model`)
@@ -502,6 +554,39 @@ mod tests {
         let c = std::f64::consts::FRAC_1_SQRT_2;
         let turned = [[c, 0.0, c, 0.0], [0.0, 1.0, 0.0, 0.0], [-c, 0.0, c, 0.0], [0.0, 0.0, 0.0, 1.0]];
         assert!(smoke_box(&turned, &serde_json::json!(0.5)).unwrap_err().0.contains("turned"));
+    }
+
+    #[test]
+    fn cameras_at_nearly_one_place_looking_one_way_are_warned_of() {
+        let lens = Lens::Pinhole { fx: 100.0, fy: 100.0, cx: 50.0, cy: 40.0 };
+        let view = |name: &str, x: f64, look_x: f64| View {
+            name: name.into(),
+            camera: Camera {
+                position: Vec3::new(x, 0.0, 2.0),
+                look_at: Vec3::new(look_x, 0.0, 0.0),
+                up: Vec3::y(),
+                lens,
+                width: 100,
+                height: 80,
+            },
+            frames: Frames::Images(Vec::new()),
+            held_out: false,
+        };
+        // A rig 2 wide: a camera moved by 0.5 % of it, still looking at the origin, reads as one camera listed twice.
+        let rig = [view("a", -1.0, 0.0), view("b", 1.0, 0.0), view("a1", -0.99, 0.0)];
+        let warning = nearly_one_camera(&rig).unwrap();
+        assert!(
+            warning.contains("the cameras a and a1 stand 0.50 % of the rig's width apart and look 0.23 degrees"),
+            "{warning}"
+        );
+        assert!(!warning.contains("other pairs") && warning.contains("the same transform_matrix"), "{warning}");
+        let twice = [view("a", -1.0, 0.0), view("b", 1.0, 0.0), view("a1", -0.99, 0.0), view("b1", 0.99, 0.0)];
+        assert!(nearly_one_camera(&twice).unwrap().contains("apart, as does one other pair: they are read"));
+        // Moved by 2 % of the rig, or turned by 2 degrees: two cameras.
+        assert!(nearly_one_camera(&[view("a", -1.0, 0.0), view("b", 1.0, 0.0), view("c", -0.96, 0.0)]).is_none());
+        let turned = 2.0 * 2.0_f64.to_radians().tan();
+        assert!(nearly_one_camera(&[view("a", -1.0, 0.0), view("b", 1.0, 0.0), view("c", -1.0, turned)]).is_none());
+        assert!(nearly_one_camera(&[view("a", 0.0, 0.0), view("b", 0.0, 1.0)]).is_none());
     }
 
     #[test]

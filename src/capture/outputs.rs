@@ -17,6 +17,7 @@ use super::reuse::{self, RunSettings};
 use super::settings::FitSettings;
 use super::Capture;
 use crate::error::{Error, Result};
+use crate::eval::metrics::show_score;
 use crate::experiment::Run;
 use crate::io::rows::{fmt, write_rows};
 use crate::io::{npy, png};
@@ -241,20 +242,20 @@ fn write(
             rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
         });
         eprintln!(
-            "held-out camera {}: PSNR {} dB, relative RMSE {} ({})",
+            "held-out camera {}: PSNR {}, relative RMSE {} ({})",
             view.name,
-            held.score.psnr.map_or("-".into(), |x| format!("{x:.2}")),
-            held.score.rel_rmse.map_or("-".into(), |x| format!("{:.1} %", 100.0 * x)),
+            show_score(held.score.psnr, 1.0, 2, " dB"),
+            show_score(held.score.rel_rmse, 100.0, 1, " %"),
             protocol.name()
         );
         let [dx, dy] = held.oracle.shift;
         eprintln!(
             "  moved by its best whole-pixel shift ({dx} right, {dy} down, in the protocol's pixels) it would \
-             score {} dB, magnified {:.3} times and shifted {} dB: what a calibration error of the held-out \
-             camera costs (fit_quality.csv)",
-            held.oracle.with_shift.psnr.map_or("-".into(), |x| format!("{x:.2}")),
+             score {}, magnified {:.3} times and shifted {}: what a calibration error of the held-out camera \
+             costs (fit_quality.csv)",
+            show_score(held.oracle.with_shift.psnr, 1.0, 2, " dB"),
             held.aligned.magnification,
-            held.aligned.score.psnr.map_or("-".into(), |x| format!("{x:.2}"))
+            show_score(held.aligned.score.psnr, 1.0, 2, " dB")
         );
     }
     write_rows(&run.path("fit_quality.csv"), &quality)

@@ -11,7 +11,7 @@
 //! with another seed.
 
 use crate::error::{Error, Result};
-use crate::eval::metrics::block_rel_rmse;
+use crate::eval::metrics::{block_rel_rmse, show_score};
 use crate::image::Image;
 use crate::render::render_photon;
 use crate::scene::Scene;
@@ -128,15 +128,12 @@ pub fn fit_quality(
     Ok(rows)
 }
 
-/// What the Markdown table shows where a relative error is undefined.
-const UNDEFINED: &str = "undefined";
-
 /// The Markdown table of `rows`, percentages with the floor beside each.
 pub fn fit_quality_markdown(rows: &[CameraFit]) -> String {
     let mut md = String::from(
         "| camera | role | per pixel (floor) | 2x2 blocks (floor) | 4x4 blocks (floor) | pixel / floor |\n|---|---|---|---|---|---|\n",
     );
-    let percent = |v: Option<f64>| v.map_or_else(|| UNDEFINED.to_string(), |v| format!("{:.1} %", 100.0 * v));
+    let percent = |v: Option<f64>| show_score(v, 100.0, 1, " %");
     let pct = |a: Option<f64>, f: Option<f64>| format!("{} ({})", percent(a), percent(f));
     for r in rows {
         md += &format!(
@@ -146,7 +143,7 @@ pub fn fit_quality_markdown(rows: &[CameraFit]) -> String {
             pct(r.rel_rmse_1x1, r.floor_1x1),
             pct(r.rel_rmse_2x2, r.floor_2x2),
             pct(r.rel_rmse_4x4, r.floor_4x4),
-            r.pixel_ratio().map_or_else(|| UNDEFINED.to_string(), |v| format!("{v:.2}"))
+            show_score(r.pixel_ratio(), 1.0, 2, "")
         );
     }
     if rows.iter().any(|r| r.pixel_ratio().is_none()) {

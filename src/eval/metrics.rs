@@ -4,6 +4,15 @@
 
 use crate::image::Image;
 
+/// What a terminal line or a table shows for an undefined score (a
+/// relative error against a black image, a PSNR of an exact one).
+pub const UNDEFINED: &str = "undefined";
+
+/// `v` times `scale` to `decimals` places, then `unit`; [`UNDEFINED`] for `None`.
+pub fn show_score(v: Option<f64>, scale: f64, decimals: usize, unit: &str) -> String {
+    v.map_or_else(|| UNDEFINED.to_string(), |v| format!("{:.*}{unit}", decimals, scale * v))
+}
+
 /// Sums over all camera pairs: (sum of squared block differences, sum of
 /// reference block noise variances, sum of squared reference blocks, blocks).
 fn block_sums(ours: &[Image], reference: &[Image], std_err: Option<&[Image]>, b: usize) -> (f64, f64, f64, usize) {
