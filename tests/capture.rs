@@ -6,6 +6,8 @@
 mod common;
 
 use common::temp_dir;
+use dualphoton::capture::frame::{check, Roles};
+use dualphoton::capture::settings::FitSettings;
 use dualphoton::capture::{calibration, frames, observe, protocol::Protocol, Frames};
 use dualphoton::io::npy;
 use dualphoton::math::Vec3;
@@ -77,6 +79,12 @@ fn a_transforms_json_reads_folders_of_images_of_every_kind() {
 
     let err = frames::read(&capture.views[0], &[3]).unwrap_err().0;
     assert!(err.contains("frame 3 is out of range") && err.contains("0..2"), "{err}");
+    // Contradictory choices are refused before any work.
+    let roles = Roles::choose(&capture, Some("cam_b"), &[]).unwrap();
+    let err = check(&capture, &roles, &[1, 2, 1], &FitSettings::default()).unwrap_err().0;
+    assert_eq!(err, "frame 1 is given twice");
+    let err = Roles::choose(&capture, Some("cam_b"), &["cam_b".into()]).unwrap_err().0;
+    assert!(err.starts_with("--drop: cam_b is the held-out camera"), "{err}");
 
     // A file_path without an extension (the NeRF synthetic scenes' form) is
     // the image of that name with one; without such an image, an error.

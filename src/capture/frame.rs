@@ -71,6 +71,12 @@ impl Roles {
             }
         };
         let dropped = dropped.iter().map(|name| capture.view(name)).collect::<Result<Vec<usize>>>()?;
+        if dropped.contains(&held_out) {
+            return Err(Error(format!(
+                "--drop: {} is the held-out camera: it is scored, and a dropped camera is left out of everything",
+                capture.views[held_out].name
+            )));
+        }
         let training = (0..capture.views.len())
             .filter(|&v| v != held_out && !capture.views[v].held_out && !dropped.contains(&v))
             .collect();
@@ -130,6 +136,9 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
             "frame {n} is out of range (the capture has frames 0..{})",
             count.saturating_sub(1)
         )));
+    }
+    if let Some((_, n)) = wanted.iter().enumerate().find(|(i, n)| wanted[..*i].contains(n)) {
+        return Err(Error(format!("frame {n} is given twice")));
     }
     if roles.training.is_empty() {
         return Err(Error("the capture has no training camera".into()));
