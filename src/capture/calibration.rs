@@ -24,7 +24,7 @@
 //! image centre. Paths are relative to the calibration file.
 
 use super::frames::IMAGE_EXTENSIONS;
-use super::{Capture, Frames, View};
+use super::{first_repeat, Capture, Frames, View};
 use crate::bail;
 use crate::error::{show, Error, Result};
 use crate::io::npy;
@@ -278,7 +278,7 @@ fn per_camera(entries: Vec<Entry>) -> Result<Vec<(String, Camera, Frames, bool)>
         parents.iter().all(|p| *p == parents[0]).then(|| parents[0].clone()).flatten()
     };
     let folders: Option<Vec<PathBuf>> = groups.iter().map(|g| folder(g)).collect();
-    let distinct = |f: &Vec<PathBuf>| (0..f.len()).all(|i| !f[..i].contains(&f[i]) && !f[i].as_os_str().is_empty());
+    let distinct = |f: &Vec<PathBuf>| first_repeat(f).is_none() && f.iter().all(|p| !p.as_os_str().is_empty());
     let names: Vec<String> = match folders.filter(distinct) {
         Some(folders) => folders.iter().map(|f| f.to_string_lossy().into_owned()).collect(),
         None => (0..groups.len()).map(|k| format!("camera{k}")).collect(),
@@ -513,11 +513,6 @@ fn camera_names(paths: &[&str]) -> Result<Vec<String>> {
         bail!("cameras {j} and {i} (in file order) would both be named {}: give each its own frames", names[i]);
     }
     Ok(names)
-}
-
-/// The first name that repeats an earlier one: (earlier, later) index.
-fn first_repeat(names: &[String]) -> Option<(usize, usize)> {
-    (0..names.len()).find_map(|i| names[..i].iter().position(|n| *n == names[i]).map(|j| (j, i)))
 }
 
 #[cfg(test)]

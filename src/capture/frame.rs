@@ -9,7 +9,7 @@ use super::observe::{check_light_outside_box, observe, Observed};
 use super::protocol::{Aligned, Oracle, Protocol, Score};
 use super::rig::Rig;
 use super::settings::FitSettings;
-use super::{frames, Capture, Frames};
+use super::{first_repeat, frames, Capture, Frames};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::math::{inside_box, Vec3};
@@ -137,8 +137,8 @@ pub fn check(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitS
             count.saturating_sub(1)
         )));
     }
-    if let Some((_, n)) = wanted.iter().enumerate().find(|(i, n)| wanted[..*i].contains(n)) {
-        return Err(Error(format!("frame {n} is given twice")));
+    if let Some((_, i)) = first_repeat(wanted) {
+        return Err(Error(format!("frame {} is given twice", wanted[i])));
     }
     if roles.training.is_empty() {
         return Err(Error("the capture has no training camera".into()));

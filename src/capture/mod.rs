@@ -89,6 +89,11 @@ pub struct View {
     pub held_out: bool,
 }
 
+/// The first item that repeats an earlier one: (earlier, later) index.
+pub(crate) fn first_repeat<T: PartialEq>(items: &[T]) -> Option<(usize, usize)> {
+    (0..items.len()).find_map(|i| items[..i].iter().position(|x| *x == items[i]).map(|j| (j, i)))
+}
+
 /// The box of `corners` (lower x, y, z, then upper x, y, z, in a capture's
 /// units), or an error: six finite numbers, each lower below its upper.
 pub fn box_of(corners: &[f64]) -> crate::Result<(Vec3, Vec3)> {
