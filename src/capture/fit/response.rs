@@ -1,0 +1,90 @@
+//! The camera response both ways: a photograph to what a fit's renders
+//! are fitted to (less the black level, over the gain; censored where the
+//! capture's threshold hides a render's error), and a render to code
+//! values (the gain and black level, the curve, the threshold).
+
+use crate::capture::settings::FitSettings;
+use crate::image::Image;
+
+/// `targets` where the capture's threshold hides nothing, and `rendered`
+/// itself (no error) where a target is 0 and the render is below the
+/// threshold: there the photograph cannot tell the render is wrong.
+/// `threshold` is in linear units of the photographs; a camera's render
+/// `r` meets it where `gain r + black` does. Without a render (none yet),
+/// `targets` as they are.
+pub(super) fn censored(
+    targets: &[Image],
+    rendered: Option<&[Image]>,
+    threshold: f64,
+    gains: &[f64],
+    blacks: &[f64],
+) -> Vec<Image> {
+    let Some(rendered) = rendered else { return targets.to_vec() };
+    targets
+        .iter()
+        .zip(rendered)
+        .zip(gains.iter().zip(blacks))
+        .map(|((t, r), (gain, black))| Image {
+            width: t.width,
+            height: t.height,
+            data: t
+                .data
+                .iter()
+                .zip(&r.data)
+                .map(|(&t, &r)| if t == 0.0 && r * gain + black < threshold { r } else { t })
+                .collect(),
+        })
+        .collect()
+}
+
+/// `photographs` (linear) less each camera's black level where they are
+/// not 0 (the threshold hid the rest), over its gain.
+pub(super) fn over_response(photographs: &[Image], gains: &[f64], blacks: &[f64]) -> Vec<Image> {
+    let cameras = photographs.iter().zip(gains.iter().zip(blacks));
+    cameras.map(|(p, (g, b))| p.map(|v| if v > 0.0 { (v - b) / g } else { 0.0 })).collect()
+}
+
+/// A rendered view through a camera of `gain` and `black` level and the
+/// response of `settings`: the gain and black level, the curve
+/// ([`FitSettings::gamma`]), then the capture's processing (0 below its
+/// threshold), in code value / full scale.
+pub fn respond(image: &Image, gain: f64, black: f64, settings: &FitSettings) -> Image {
+    image.map(|v| {
+        let code = (gain * v + black).max(0.0).powf(1.0 / settings.gamma);
+        if code < settings.threshold {
+            0.0
+        } else {
+            code
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A photograph through the inverse response, over a camera's gain, comes
+    /// back through `respond` as it was; below the threshold, as 0.
+    #[test]
+    fn the_response_inverts_what_the_fit_works_on() {
+        let settings = FitSettings { gamma: 2.2, ..FitSettings::default() };
+        let photo = Image { width: 4, height: 1, data: vec![0.0, 5.0 / 255.0, 0.1, 0.9] };
+        let gain = 1.3;
+        let linear = photo.map(|v| v.powf(settings.gamma) / gain);
+        let back = respond(&linear, gain, 0.0, &settings);
+        assert_eq!(back.data[..2], [0.0, 0.0]);
+        for (b, p) in back.data[2..].iter().zip(&photo.data[2..]) {
+            assert!((b - p).abs() < 1e-12, "{back:?}");
+        }
+        let raw = respond(&linear, gain, 0.0, &FitSettings::default());
+        assert!((raw.data[3] - 0.9f64.powf(2.2)).abs() < 1e-12, "gamma 1 must pass radiance through: {raw:?}");
+        // With a black level, through what the fit works on and back.
+        let black = 0.0003; // below the threshold in linear units, (8 / 255)^2.2
+        let linear = &over_response(&[photo.map(|v| v.powf(settings.gamma))], &[gain], &[black])[0];
+        let back = respond(linear, gain, black, &settings);
+        assert_eq!(back.data[..2], [0.0, 0.0]);
+        for (b, p) in back.data[2..].iter().zip(&photo.data[2..]) {
+            assert!((b - p).abs() < 1e-12, "{back:?}");
+        }
+    }
+}
