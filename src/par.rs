@@ -39,7 +39,7 @@ pub fn concat<T: Clone + Send + Sync>(parts: Vec<Vec<T>>) -> Vec<T> {
 /// ([`cloned`], [`filled`], a maximum): waking the pool costs about as much
 /// as copying this much, so a loop under two tasks' worth stays on the
 /// calling thread.
-const COPY_TASK_BYTES: usize = 1 << 18;
+pub const COPY_TASK_BYTES: usize = 1 << 18;
 
 /// Items of `T` per task of such a loop ([`COPY_TASK_BYTES`]).
 pub fn copy_task_len<T>() -> usize {

@@ -26,7 +26,7 @@ const ITERATIONS: usize = 8;
 
 /// Largest move of any pixel in one iteration (pixels): the bilinear
 /// photograph is a good model of itself only within about a pixel.
-const MAX_STEP: f64 = 1.0;
+pub const MAX_STEP: f64 = 1.0;
 
 /// A photograph's warp onto a render: sample it at `c + (1 + zoom)
 /// Rot(roll) (p - c) + offset` for pixel `p`, `c` the principal point.

@@ -1,7 +1,7 @@
 //! NumPy `.npy` files: read what `numpy.save` writes for float32, float64,
 //! uint8 and bool arrays, write float32 and uint8. The format is small
 //! enough to own
-//! (https://numpy.org/doc/stable/reference/generated/numpy.lib.format.html).
+//! (<https://numpy.org/doc/stable/reference/generated/numpy.lib.format.html>).
 //!
 //! Read: format versions 1.0, 2.0 and 3.0; little- and big-endian (`<f4`,
 //! `>f8`, ...); C order and Fortran order (`fortran_order: True`, what numpy

@@ -137,7 +137,7 @@ pub struct ParamGradient {
 /// lanes is faster there has changed between machines and revisions
 /// (results/bench_grad has the current numbers). The bits are the same
 /// either way.
-const WIDE_LANES_UP_TO: usize = 64 * 64 * 64;
+pub const WIDE_LANES_UP_TO: usize = 64 * 64 * 64;
 
 /// Most lanes per forward pass on grids above [`WIDE_LANES_UP_TO`] voxels.
 pub const LANES_ABOVE_64_CUBED: usize = 32;

@@ -3,7 +3,7 @@
 //! flight is forced to end in a collision inside the medium (weight `1 - T`
 //! of the whole segment, so no photon is wasted on escaping), directions
 //! follow Henyey-Greenstein mixed with lobes towards the cameras
-//! ([`Tracer::scatter`]'s one-sample mixture), and a photon is stored at its
+//! (`Tracer::scatter`'s one-sample mixture), and a photon is stored at its
 //! 2nd..max_order-th collision with the power that arrives there (the 1st
 //! collision is single scattering, computed directly). Every decision uses
 //! the sampling density; [`Tracer::replay`] re-evaluates a path's power as a

@@ -1,5 +1,5 @@
 //! Scenes: the medium, point lights, cameras and render knobs, read from and
-//! written to a JSON file with the density in a `.npy` ([`file`]), plus the
+//! written to a JSON file with the density in a `.npy` ([`file`](mod@file)), plus the
 //! paper's rig.
 
 pub mod camera;

@@ -1,6 +1,6 @@
 //! Numerical stability on stiff and extreme cases, shared by the
 //! `stability` study and the tests: a zoo of small scenes each pushed to one
-//! extreme ([`cases`]), invalid scenes that must be rejected
+//! extreme ([`cases()`]), invalid scenes that must be rejected
 //! ([`invalid_cases`]), and the checks of one case ([`check`]).
 //!
 //! Every case is the base scene ([`Settings::base`]: an 8^3 blob, two small
