@@ -2,6 +2,8 @@
 //! (`dualphoton::eval::scenes`), plus a camera on the +z axis.
 #![allow(dead_code, unused_imports)]
 
+pub mod capture;
+
 pub use dualphoton::eval::scenes::{blob, homogeneous, medium, scene};
 
 use dualphoton::eval::scenes::look_at_origin;
