@@ -6,9 +6,14 @@
 //! Data flow: a [`scene::Scene`] (density grid, medium, point lights,
 //! pinhole cameras) is rendered by [`render`] into radiance images: single
 //! scattering by ray marching, higher orders by photon mapping; an unbiased
-//! path tracer is the reference. Conventions (right-handed, y up, voxel
-//! centres, units) are those of `docs/DESIGN.md` §1 and are documented on the
-//! types that carry them.
+//! path tracer is the reference. [`recon`] fits a density to images of
+//! known cameras and lights (the paper's latent and decoder, or the
+//! learned prior of [`prior`], then a per-voxel refinement), its gradients
+//! from [`grad`]; [`capture`] fits real photographs, whose lights and
+//! camera response are unknown and fitted too. Conventions (right-handed,
+//! y up, voxel centres, units) are those of `docs/DESIGN.md` §1 and are
+//! documented on the types that carry them; §6 says where each module
+//! stands.
 
 #![warn(missing_docs)]
 

@@ -2,7 +2,9 @@
 //! is in, read as other projects distribute them.
 //!
 //! - [`calibration`] reads the camera calibration: PINF/HyFluid's
-//!   `info.json` or a NeRF-style `transforms.json`.
+//!   `info.json` or a NeRF-style `transforms.json`;
+//!   [`scalarflow_cameras`] reads ScalarFlow's own camera file, a second
+//!   calibration of its rig (its focal lengths differ).
 //! - [`frames`] decodes frames from videos (through the `ffmpeg` program)
 //!   or image files into images of code value / full scale.
 //! - [`observe`] gives the frames at a working resolution and the real
@@ -10,8 +12,9 @@
 //! - [`align`] finds how far a photograph must move to agree with a render
 //!   (a camera's principal point, corrected).
 //! - [`fit`] fits one frame: the density, the lights' intensities and the
-//!   emission, under one of three image models; [`density`] is what its
-//!   steps move and where it starts.
+//!   emission, under one of three image models; [`settings`] holds every
+//!   setting of it and its defaults; [`density`] is what its steps move
+//!   and where it starts.
 //! - [`lighting`] is the fit's lighting and the cameras' gains: candidate
 //!   lights and an ambient term, fitted by least squares on their renders;
 //!   [`lights`] gives the image's derivatives in a light's place.
@@ -21,7 +24,8 @@
 //! - [`rig`] aligns the training cameras once for every frame of a capture;
 //!   [`reuse`] says when a later run may take a rig or fits an earlier one made.
 //! - [`temporal`] brings neighbouring frames' densities onto one frame's.
-//! - [`frame`] is one frame end to end: checks, images, fit, held-out views.
+//! - [`frame`] is one frame end to end: checks, images, fit, held-out views;
+//!   [`outputs`] writes what `dualphoton fit --capture` leaves in its folder.
 //! - [`protocol`] is the field's held-out-view evaluation: area
 //!   downsampling, a fixed crop, PSNR and relative RMSE;
 //!   [`expected_view`] averages a held-out view over the calibration error
