@@ -85,9 +85,11 @@ pub struct FitSettings {
     /// factors 3 and 10 lost 0.17 and 0.63 dB on the scoring camera and 0.3
     /// gained 0.01 dB: 1, as along the vertical.
     pub horizontal_smoothness: f64,
-    /// Weight of the sparsity term ([`sparsity`](crate::capture::priors::sparsity)) against the images' mean
+    /// Weight of the sparsity term ([`sparsity`]) against the images' mean
     /// squared error. Off: on the settings study's frames 0.0001 changed
     /// nothing and 0.001 lost 0.7-1.4 dB on the scoring camera.
+    ///
+    /// [`sparsity`]: crate::capture::priors::sparsity
     pub sparsity: f64,
     /// Weight of the total-variation term ([`super::priors::total_variation`])
     /// against the images' mean squared error. Off: on the settings study's
@@ -188,10 +190,12 @@ pub struct FitSettings {
     /// Dilation of the silhouettes (full-resolution pixels) once the
     /// training cameras are aligned: from then on each level's hull is
     /// carved through the aligned cameras with this margin. Before, the
-    /// margin is the calibration's disagreement ([`SILHOUETTE_MARGIN_PX`](crate::capture::observe::SILHOUETTE_MARGIN_PX)).
+    /// margin is the calibration's disagreement ([`SILHOUETTE_MARGIN_PX`]).
     /// On the settings study's frames 20 scored best of 0, 8, 20 and 40
     /// (0.3-0.5 dB over 40, every model) by the additive update; by the
     /// logarithmic one 8 scored 0.08 dB above 20, too little to change it.
+    ///
+    /// [`SILHOUETTE_MARGIN_PX`]: crate::capture::observe::SILHOUETTE_MARGIN_PX
     pub aligned_margin: f64,
     /// Lights whose places are fitted ([`super::lights`]): from the second
     /// stage on, the strongest this many candidates are kept and move

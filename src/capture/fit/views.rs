@@ -46,7 +46,9 @@ pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
 }
 
 /// A held-out camera's black level: the training cameras' mean, by the
-/// rule fixed in advance ([`FitSettings::black_level`](crate::capture::settings::FitSettings::black_level)); 0 without it.
+/// rule fixed in advance ([`FitSettings::black_level`]); 0 without it.
+///
+/// [`FitSettings::black_level`]: crate::capture::settings::FitSettings::black_level
 pub fn held_out_black(fit: &Fit) -> f64 {
     fit.black_levels.iter().sum::<f64>() / fit.black_levels.len().max(1) as f64
 }
