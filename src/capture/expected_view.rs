@@ -19,10 +19,11 @@
 //! spread, and the expected view is the render itself.
 
 use super::fit::Fit;
-use super::protocol::{moved, Protocol, Score};
+use super::protocol::{moved_pixel, Protocol, Score};
 use crate::image::Image;
 use crate::scene::Camera;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use rayon::prelude::*;
 
 /// One move of the held-out camera and its weight in the mean.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,13 +86,17 @@ pub fn expected_view(prediction: &Image, principal: [f64; 2], moves: &[Move]) ->
             return prediction.clone();
         }
     }
-    let mut mean = Image::zeros(prediction.width, prediction.height);
-    for m in moves {
-        let view = moved(prediction, m.zoom, m.offset_px, principal);
-        for (acc, v) in mean.data.iter_mut().zip(&view.data) {
-            *acc += m.weight * v;
+    // Pixel by pixel, each summing the moves in order: the moved images
+    // need not all be held, and the sum is the same on any number of threads.
+    let w = prediction.width;
+    let mut mean = Image::zeros(w, prediction.height);
+    mean.data.par_chunks_mut(w.max(1)).enumerate().for_each(|(row, out)| {
+        for (column, acc) in out.iter_mut().enumerate() {
+            for m in moves {
+                *acc += m.weight * moved_pixel(prediction, m.zoom, m.offset_px, principal, [column, row]);
+            }
         }
-    }
+    });
     mean
 }
 
@@ -152,6 +157,24 @@ mod tests {
             assert_eq!(moves.len(), 1);
             assert_eq!(expected_view(&image, [1.5, 1.0], &moves), image);
         }
+    }
+
+    /// The expected view is the weighted sum of the moved renders, added
+    /// in the moves' order: the same to the bit however it is computed.
+    #[test]
+    fn the_expected_view_is_the_weighted_sum_of_the_moved_views() {
+        let (w, h) = (13, 9);
+        let image = Image { width: w, height: h, data: (0..w * h).map(|i| (i as f64 * 0.37).sin().abs()).collect() };
+        let moves = moves(&[[1.0, 6.0], [4.7, -18.5], [-2.3, -4.9], [-3.5, 17.3]], &[1.02, 0.98, 1.015, 0.985]);
+        let principal = [6.5, 4.0];
+        let mut sum = Image::zeros(w, h);
+        for m in &moves {
+            let view = crate::capture::protocol::moved(&image, m.zoom, m.offset_px, principal);
+            for (acc, v) in sum.data.iter_mut().zip(&view.data) {
+                *acc += m.weight * v;
+            }
+        }
+        assert_eq!(expected_view(&image, principal, &moves), sum);
     }
 
     #[test]

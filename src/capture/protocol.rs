@@ -7,6 +7,7 @@
 
 use super::align::sample;
 use crate::image::Image;
+use rayon::prelude::*;
 
 /// Downsampling, then a crop, then the metrics.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -93,9 +94,13 @@ impl Oracle {
         let gain = if pp > 0.0 { pt / pp } else { 1.0 };
         let with_gain = Score::of(&prediction.map(|p| p * gain), truth);
         let r = ORACLE_SHIFT_PX;
-        let (shift, with_shift) = (-r..=r)
-            .flat_map(|dy| (-r..=r).map(move |dx| [dx, dy]))
-            .map(|s| (s, Score::of(&shifted(prediction, s), truth)))
+        let shifts: Vec<[i64; 2]> = (-r..=r).flat_map(|dy| (-r..=r).map(move |dx| [dx, dy])).collect();
+        let norm2 = squared_norm(truth);
+        // Scored in parallel, chosen in order: the same choice on any number of threads.
+        let scores: Vec<Score> = shifts.par_iter().map(|&s| shifted_score(prediction, s, truth, norm2)).collect();
+        let (shift, with_shift) = shifts
+            .into_iter()
+            .zip(scores)
             .min_by(|a, b| mse_of(&a.1).total_cmp(&mse_of(&b.1)).then(norm(a.0).cmp(&norm(b.0))))
             .expect("at least the zero shift");
         Oracle { gain, with_gain, shift, with_shift }
@@ -133,12 +138,16 @@ impl Aligned {
     /// shift after it, scored under `protocol` against `truth_view` (the
     /// photograph's view under it). Ties go to the magnification nearest 1.
     pub fn of(prediction: &Image, principal: [f64; 2], protocol: &Protocol, truth_view: &Image) -> Aligned {
-        ORACLE_MAGNIFICATIONS
-            .iter()
+        let tried: Vec<Aligned> = ORACLE_MAGNIFICATIONS
+            .par_iter()
             .map(|&k| {
                 let oracle = Oracle::of(&protocol.view(&magnified(prediction, k, principal)), truth_view);
                 Aligned { magnification: k, shift: oracle.shift, score: oracle.with_shift }
             })
+            .collect();
+        // Chosen in order, as the shifts are.
+        tried
+            .into_iter()
             .min_by(|a, b| {
                 mse_of(&a.score)
                     .total_cmp(&mse_of(&b.score))
@@ -161,13 +170,20 @@ fn magnified(image: &Image, k: f64, principal: [f64; 2]) -> Image {
 /// its principal point moved by `[dx, dy]`.
 pub fn moved(image: &Image, k: f64, [dx, dy]: [f64; 2], [cx, cy]: [f64; 2]) -> Image {
     let (w, h) = (image.width, image.height);
-    let data = (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
-            sample(image, cx + (x - cx - dx) / k, cy + (y - cy - dy) / k)
-        })
-        .collect();
+    let mut data = vec![0.0; w * h];
+    data.par_chunks_mut(w.max(1)).enumerate().for_each(|(row, out)| {
+        for (column, value) in out.iter_mut().enumerate() {
+            *value = moved_pixel(image, k, [dx, dy], [cx, cy], [column, row]);
+        }
+    });
     Image { width: w, height: h, data }
+}
+
+/// Pixel `[column, row]` of [`moved`]`(image, k, [dx, dy], [cx, cy])`.
+#[inline]
+pub fn moved_pixel(image: &Image, k: f64, [dx, dy]: [f64; 2], [cx, cy]: [f64; 2], [column, row]: [usize; 2]) -> f64 {
+    let (x, y) = (column as f64 + 0.5, row as f64 + 0.5);
+    sample(image, cx + (x - cx - dx) / k, cy + (y - cy - dy) / k)
 }
 
 /// The mean squared error behind a score (0 for a perfect one).
@@ -180,16 +196,35 @@ fn norm([dx, dy]: [i64; 2]) -> i64 {
     dx.abs() + dy.abs()
 }
 
-/// `image` moved by `[dx, dy]` pixels (right, down), black where nothing moves in.
-fn shifted(image: &Image, [dx, dy]: [i64; 2]) -> Image {
+/// `Score::of(image moved by [dx, dy] pixels (right, down), truth)`, black
+/// where nothing moves in, without making the moved image; `norm2` is
+/// [`squared_norm`]`(truth)`. The errors are added in the same order and
+/// exact zeros (both black, most of a view) left out, which changes no sum
+/// but a zero one's sign: the same score to the bit.
+fn shifted_score(image: &Image, [dx, dy]: [i64; 2], truth: &Image, norm2: f64) -> Score {
+    assert_eq!((image.width, image.height), (truth.width, truth.height), "compared images differ in size");
     let (w, h) = (image.width as i64, image.height as i64);
-    let mut out = Image::zeros(image.width, image.height);
-    for y in 0.max(dy)..h.min(h + dy) {
-        for x in 0.max(dx)..w.min(w + dx) {
-            out.data[(y * w + x) as usize] = image.data[((y - dy) * w + x - dx) as usize];
+    let mut err2 = 0.0;
+    for (y, truth_row) in (0..h).zip(truth.data.chunks(image.width.max(1))) {
+        let sy = y - dy;
+        let source = (0..h).contains(&sy).then(|| &image.data[(sy * w) as usize..((sy + 1) * w) as usize]);
+        for (x, &t) in (0..w).zip(truth_row) {
+            let sx = x - dx;
+            let p = match source {
+                Some(row) if (0..w).contains(&sx) => row[sx as usize],
+                _ => 0.0,
+            };
+            if p != 0.0 || t != 0.0 {
+                err2 += (p - t) * (p - t);
+            }
         }
     }
-    out
+    Score::of_sums(err2, norm2, truth.data.len())
+}
+
+/// The sum of `image`'s squared values.
+fn squared_norm(image: &Image) -> f64 {
+    image.data.iter().map(|t| t * t).sum()
 }
 
 /// The metrics of one prediction.
@@ -206,8 +241,13 @@ impl Score {
     pub fn of(prediction: &Image, truth: &Image) -> Score {
         assert_eq!(prediction.data.len(), truth.data.len(), "compared images differ in size");
         let err2: f64 = prediction.data.iter().zip(&truth.data).map(|(p, t)| (p - t) * (p - t)).sum();
-        let norm2: f64 = truth.data.iter().map(|t| t * t).sum();
-        let mse = err2 / truth.data.len().max(1) as f64;
+        Score::of_sums(err2, squared_norm(truth), truth.data.len())
+    }
+
+    /// The metrics from the sum of squared errors over `pixels` pixels and
+    /// the truth's squared norm.
+    fn of_sums(err2: f64, norm2: f64, pixels: usize) -> Score {
+        let mse = err2 / pixels.max(1) as f64;
         Score { psnr: (mse > 0.0).then(|| -10.0 * mse.log10()), rel_rmse: (norm2 > 0.0).then(|| (err2 / norm2).sqrt()) }
     }
 }
@@ -238,6 +278,29 @@ mod tests {
         assert!((s.rel_rmse.unwrap() - (0.02f64 / 0.5).sqrt()).abs() < 1e-12);
         assert_eq!(Score::of(&truth, &truth).psnr, None);
         assert_eq!(Score::of(&truth, &Image::zeros(2, 2)).rel_rmse, None);
+    }
+
+    /// The shifted score, made without the shifted image, is the score of
+    /// that image to the bit: moves left, right, up, down, off the image.
+    #[test]
+    fn a_shifted_score_is_the_score_of_the_shifted_image() {
+        let (w, h) = (7, 5);
+        let wave = |i: usize, a: f64| if i % 3 == 0 { 0.0 } else { (i as f64 * a).sin().abs() };
+        let image = Image { width: w, height: h, data: (0..w * h).map(|i| wave(i, 0.7)).collect() };
+        let truth = Image { width: w, height: h, data: (0..w * h).map(|i| wave(i + 1, 1.3)).collect() };
+        let norm2 = squared_norm(&truth);
+        for shift in [[0, 0], [2, -1], [-3, 2], [6, 0], [0, -4], [7, 5], [-9, 0]] {
+            let mut moved = Image::zeros(w, h);
+            for y in 0..h as i64 {
+                for x in 0..w as i64 {
+                    let (sx, sy) = (x - shift[0], y - shift[1]);
+                    if (0..w as i64).contains(&sx) && (0..h as i64).contains(&sy) {
+                        moved.data[(y * w as i64 + x) as usize] = image.data[(sy * w as i64 + sx) as usize];
+                    }
+                }
+            }
+            assert_eq!(shifted_score(&image, shift, &truth, norm2), Score::of(&moved, &truth), "shift {shift:?}");
+        }
     }
 
     /// A blob dimmed, then a blob moved: the oracle finds the gain and the
