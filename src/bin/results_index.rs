@@ -1,6 +1,6 @@
 //! Writes `results/README.md`, the index of the results: one row per run
-//! folder (folder, command, revision, clean tree, date, wall time, threads)
-//! from its `manifest.json`. `--results` names another folder.
+//! folder (folder, command, revision, clean tree, date, wall time, threads,
+//! speed probe) from its `manifest.json`. `--results` names another folder.
 
 use clap::Parser;
 use dualphoton::io::results_index::{markdown, FILE};

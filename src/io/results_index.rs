@@ -1,6 +1,6 @@
 //! The index of `results/`: one Markdown table row per run folder, read
 //! from its `manifest.json` (folder, command, revision, clean tree, date,
-//! wall time, threads). `cargo run --release --bin results_index` writes it
+//! wall time, threads, the machine's speed probe). `cargo run --release --bin results_index` writes it
 //! to `results/README.md`; a test fails when that file is out of date.
 
 use crate::error::{Error, Result};
@@ -32,9 +32,12 @@ pub fn markdown(results: &Path) -> Result<String> {
          `results/` matched that commit; `date`: when the run finished (UTC). Older manifests name the \
          checked-out commit at writing time (`git`) instead, and lack some fields ({NONE}). `command` \
          names the binary by the file it ran from: a few studies ran `experiment_real` from a copy named \
-         `er` or `experiment_real_disc`, with `experiment_real`'s arguments.\n\n\
-         | folder | command | revision | clean | date | wall time | threads |\n\
-         |---|---|---|---|---|---|---|\n"
+         `er` or `experiment_real_disc`, with `experiment_real`'s arguments. `probe`: the seconds a fixed \
+         workload, the same at every revision, took on one thread of the machine as the run ended \
+         (`speed_probe` in the manifest): wall times from machines whose probes differ compare only \
+         through it.\n\n\
+         | folder | command | revision | clean | date | wall time | threads | probe |\n\
+         |---|---|---|---|---|---|---|---|\n"
     );
     for folder in &folders {
         let path = results.join(folder).join("manifest.json");
@@ -46,7 +49,7 @@ pub fn markdown(results: &Path) -> Result<String> {
     Ok(md)
 }
 
-/// The cells after the folder: command, revision, clean, date, wall time, threads.
+/// The cells after the folder: command, revision, clean, date, wall time, threads, speed probe.
 fn row(m: &Value) -> Vec<String> {
     let text = |key: &str| m.get(key).and_then(Value::as_str).filter(|s| !s.is_empty());
     let revision = text("revision").or_else(|| text("git").map(|g| g.trim_end_matches("-dirty")));
@@ -55,7 +58,9 @@ fn row(m: &Value) -> Vec<String> {
         (None, Some(g)) if g.ends_with("-dirty") => Some(false),
         _ => None,
     };
-    let wall = m.get("wall_s").and_then(Value::as_f64).filter(|s| s.is_finite() && *s >= 0.0);
+    let seconds = |v: Option<&Value>| v.and_then(Value::as_f64).filter(|s| s.is_finite() && *s >= 0.0);
+    let wall = seconds(m.get("wall_s"));
+    let probe = seconds(m.get("speed_probe").and_then(|p| p.get("one_thread_s")));
     vec![
         text("command").map_or(NONE.into(), |c| format!("`{}`", c.replace('|', "\\|").replace('`', "'"))),
         revision.map_or(NONE.into(), |r| format!("`{r}`")),
@@ -63,6 +68,7 @@ fn row(m: &Value) -> Vec<String> {
         text("date").map_or(NONE, |d| d).into(),
         wall.map_or(NONE.into(), duration),
         m.get("threads").and_then(Value::as_u64).map_or(NONE.into(), |t| t.to_string()),
+        probe.map_or(NONE.into(), |s| format!("{s:.3} s")),
     ]
 }
 
@@ -108,10 +114,12 @@ mod tests {
     #[test]
     fn old_and_new_manifests_show_what_they_have() {
         let old = row(&json!({"git": "0123456789ab-dirty", "wall_s": 5000.0}));
-        assert_eq!(old, ["—", "`0123456789ab`", "no", "—", "1 h 23 min", "—"]);
+        assert_eq!(old, ["—", "`0123456789ab`", "no", "—", "1 h 23 min", "—", "—"]);
         let new = row(&json!({"revision": "0123456789ab", "tree_clean": true, "command": "fig5 --dir a|b",
-            "date": "2025-01-01T00:00:00Z", "wall_s": 4.3, "threads": 2}));
-        assert_eq!(new, ["`fig5 --dir a\\|b`", "`0123456789ab`", "yes", "2025-01-01T00:00:00Z", "4.3 s", "2"]);
+            "date": "2025-01-01T00:00:00Z", "wall_s": 4.3, "threads": 2,
+            "speed_probe": {"one_thread_s": 0.0379801, "all_threads_s": 0.04}}));
+        let want = ["`fig5 --dir a\\|b`", "`0123456789ab`", "yes", "2025-01-01T00:00:00Z", "4.3 s", "2", "0.038 s"];
+        assert_eq!(new, want);
     }
 
     #[test]
