@@ -285,7 +285,7 @@ mod tests {
     #[test]
     fn a_shifted_score_is_the_score_of_the_shifted_image() {
         let (w, h) = (7, 5);
-        let wave = |i: usize, a: f64| if i % 3 == 0 { 0.0 } else { (i as f64 * a).sin().abs() };
+        let wave = |i: usize, a: f64| if i.is_multiple_of(3) { 0.0 } else { (i as f64 * a).sin().abs() };
         let image = Image { width: w, height: h, data: (0..w * h).map(|i| wave(i, 0.7)).collect() };
         let truth = Image { width: w, height: h, data: (0..w * h).map(|i| wave(i + 1, 1.3)).collect() };
         let norm2 = squared_norm(&truth);
