@@ -1,7 +1,8 @@
 //! The index of `results/`: one Markdown table row per run folder, read
 //! from its `manifest.json` (folder, command, revision, clean tree, date,
-//! wall time, threads, the machine's speed probe). `cargo run --release --bin results_index` writes it
-//! to `results/README.md`; a test fails when that file is out of date.
+//! wall time, threads, the machine's speed probe). `cargo run --release
+//! --bin results_index` writes it to `results/README.md`; a test fails
+//! when that file is out of date.
 
 use crate::error::{Error, Result};
 use serde_json::Value;
