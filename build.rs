@@ -30,7 +30,10 @@ fn main() {
         }
     }
     let git = |args: &[&str]| -> Option<String> {
-        let out = Command::new("git").arg("-C").arg(&root).args(args).output().ok()?;
+        // No optional locks: `git status` would otherwise refresh the index
+        // of a fresh clone, and the index is watched, so the next build
+        // would rebuild the whole package once more for nothing.
+        let out = Command::new("git").env("GIT_OPTIONAL_LOCKS", "0").arg("-C").arg(&root).args(args).output().ok()?;
         out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
     };
     let revision = git(&["rev-parse", "--short=12", "HEAD"]).filter(|r| !r.is_empty());
