@@ -304,6 +304,50 @@ fn video_frames_decode_in_order_through_ffmpeg() {
 }
 
 #[test]
+fn more_frames_than_one_ffmpeg_expression_takes_decode_in_order() {
+    if !frames::have_ffmpeg() {
+        eprintln!("SKIPPED more_frames_than_one_ffmpeg_expression_takes_decode_in_order: ffmpeg is not installed");
+        return;
+    }
+    // 220 frames, each showing its number: the left half 40 + 10 (n mod 20),
+    // the right half 40 + 10 (n div 20). ffmpeg's select filter refuses a
+    // sum of over 100 terms; over 100 lone frames and a run are asked for here.
+    let dir = temp_dir("capture_many_frames");
+    let (left, right) = (|n: u16| 40 + 10 * (n % 20), |n: u16| 40 + 10 * (n / 20));
+    for n in 0..220u16 {
+        write_png(&dir.join(format!("f{n}.png")), 32, 16, false, |x, _| if x < 16 { left(n) } else { right(n) });
+    }
+    let status = std::process::Command::new("ffmpeg")
+        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
+        .arg(dir.join("f%d.png"))
+        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
+        .arg(dir.join("cam.mp4"))
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let calib = json!({
+        "train_videos": [{"file_name": "cam.mp4", "frame_num": 220, "camera_angle_x": 0.5, "camera_hw": [16, 32],
+                          "transform_matrix": looking_at_origin(0.0, 2.0)}],
+    });
+    std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
+    let capture = calibration::load(&dir.join("info.json")).unwrap();
+    let mut wanted: Vec<usize> = (0..220).step_by(2).chain(150..160).rev().collect();
+    wanted.push(77);
+    let got = frames::read(&capture.views[0], &wanted).unwrap();
+    assert_eq!(got.len(), wanted.len());
+    for (image, &n) in got.iter().zip(&wanted) {
+        // The middle four columns of each half, away from the edge between them.
+        let code = |x0: usize| {
+            let half = (0..16).flat_map(|y| (x0..x0 + 4).map(move |x| image.data[y * 32 + x]));
+            half.sum::<f64>() / 64.0 * 255.0
+        };
+        let (l, r) = (code(6), code(22));
+        assert!((l - left(n as u16) as f64).abs() < 3.0, "frame {n}: left half {l}");
+        assert!((r - right(n as u16) as f64).abs() < 3.0, "frame {n}: right half {r}");
+    }
+}
+
+#[test]
 fn the_shipped_video_decodes_as_the_reference_decoder_decoded_it() {
     if !frames::have_ffmpeg() {
         eprintln!("SKIPPED the_shipped_video_decodes_as_the_reference_decoder_decoded_it: ffmpeg is not installed");

@@ -78,20 +78,57 @@ pub fn read(view: &View, wanted: &[usize]) -> Result<Vec<Image>> {
     Ok(images)
 }
 
-/// Pictures `wanted` of the video at `path`, `width` x `height`, in one
-/// pass of `ffmpeg` (its `select` filter keeps them in stream order).
+/// Pictures `wanted` of the video at `path`, `width` x `height`, in as few
+/// passes of `ffmpeg` as its `select` filter allows (it keeps them in
+/// stream order).
 fn decode_video(path: &Path, wanted: &[usize], width: usize, height: usize) -> Result<Vec<Image>> {
-    if wanted.is_empty() {
-        return Ok(Vec::new());
-    }
     let mut sorted = wanted.to_vec();
     sorted.sort_unstable();
     sorted.dedup();
-    let select: Vec<String> = sorted.iter().map(|n| format!("eq(n\\,{n})")).collect();
+    let mut decoded = Vec::with_capacity(sorted.len());
+    for (select, frames) in select_passes(&sorted, TERMS_PER_PASS) {
+        decoded.extend(decode_selected(path, &select, &frames, width, height)?);
+    }
+    Ok(wanted.iter().map(|n| decoded[sorted.binary_search(n).unwrap_or(0)].clone()).collect())
+}
+
+/// The most terms one `select` expression is given: `ffmpeg`'s expression
+/// parser refuses a sum of more than 100.
+const TERMS_PER_PASS: usize = 50;
+
+/// One `select` expression per pass of `ffmpeg` over a video, with the
+/// frames it keeps, for `sorted` frames (ascending, distinct): a run of
+/// consecutive frames is one term, and a pass has at most `per_pass` terms.
+fn select_passes(sorted: &[usize], per_pass: usize) -> Vec<(String, Vec<usize>)> {
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for &n in sorted {
+        match runs.last_mut() {
+            Some((_, last)) if *last + 1 == n => *last = n,
+            _ => runs.push((n, n)),
+        }
+    }
+    let term = |&(a, b): &(usize, usize)| {
+        if a == b {
+            format!("eq(n\\,{a})")
+        } else {
+            format!("between(n\\,{a}\\,{b})")
+        }
+    };
+    runs.chunks(per_pass.max(1))
+        .map(|pass| {
+            let select = pass.iter().map(term).collect::<Vec<_>>().join("+");
+            (select, pass.iter().flat_map(|&(a, b)| a..=b).collect())
+        })
+        .collect()
+}
+
+/// The `frames` (ascending) that the `select` expression keeps of the video
+/// at `path`, in one pass of `ffmpeg`.
+fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, height: usize) -> Result<Vec<Image>> {
     let child = Command::new("ffmpeg")
         .args(["-nostdin", "-v", "error", "-i"])
         .arg(path)
-        .args(["-vf", &format!("select={}", select.join("+")), "-vsync", "passthrough"])
+        .args(["-vf", &format!("select={select}"), "-vsync", "passthrough"])
         .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "pipe:1"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -103,33 +140,32 @@ fn decode_video(path: &Path, wanted: &[usize], width: usize, height: usize) -> R
         Err(e) => bail!("{}: cannot run ffmpeg: {e}", show(path)),
     };
     let frame_bytes = width * height * 3;
-    let mut bytes = Vec::with_capacity(frame_bytes * sorted.len());
+    let mut bytes = Vec::with_capacity(frame_bytes * frames.len());
     let stdout = child.stdout.take().ok_or_else(|| Error("ffmpeg gave no output".into()))?;
     // Never take more than the frames asked for (+1 byte to notice a size mismatch).
-    stdout.take((frame_bytes * sorted.len() + 1) as u64).read_to_end(&mut bytes)?;
+    stdout.take((frame_bytes * frames.len() + 1) as u64).read_to_end(&mut bytes)?;
     let mut stderr = String::new();
     if let Some(mut e) = child.stderr.take() {
         e.read_to_string(&mut stderr).ok();
     }
     let status = child.wait()?;
-    if !status.success() || bytes.len() != frame_bytes * sorted.len() {
+    if !status.success() || bytes.len() != frame_bytes * frames.len() {
         let what = stderr.lines().next().unwrap_or("its output is not the frames asked for").to_string();
         bail!(
             "{}: ffmpeg could not decode frames {:?} at {width}x{height}: {}",
             show(path),
-            sorted,
+            frames,
             crate::error::shorten(&what)
         );
     }
-    let decoded: Vec<Image> = bytes
+    Ok(bytes
         .chunks_exact(frame_bytes)
         .map(|frame| Image {
             width,
             height,
             data: frame.chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0)).collect(),
         })
-        .collect();
-    Ok(wanted.iter().map(|n| decoded[sorted.binary_search(n).unwrap_or(0)].clone()).collect())
+        .collect())
 }
 
 /// One image file as grey code value / full scale; one with an alpha
@@ -170,4 +206,23 @@ fn read_npy(path: &Path) -> Result<Image> {
         bail!("{}: holds NaN or infinity", show(path));
     }
     Ok(Image { width, height, data })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_of_frames_is_one_term_and_a_pass_has_at_most_its_terms() {
+        let passes = select_passes(&[0, 1, 2, 5, 7, 8], 50);
+        assert_eq!(passes, vec![(r"between(n\,0\,2)+eq(n\,5)+between(n\,7\,8)".into(), vec![0, 1, 2, 5, 7, 8])]);
+        let passes = select_passes(&[0, 1, 2, 5, 7, 8], 2);
+        assert_eq!(passes.len(), 2);
+        assert_eq!(passes[1], (r"between(n\,7\,8)".into(), vec![7, 8]));
+        let odd: Vec<usize> = (1..240).step_by(2).collect();
+        let passes = select_passes(&odd, TERMS_PER_PASS);
+        assert_eq!(passes.iter().map(|(_, f)| f.len()).collect::<Vec<_>>(), vec![50, 50, 20]);
+        assert_eq!(passes.iter().flat_map(|(_, f)| f.clone()).collect::<Vec<_>>(), odd);
+        assert!(select_passes(&[], TERMS_PER_PASS).is_empty());
+    }
 }
