@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::capture::{looking_at_origin, write_png};
+use common::capture::{looking_at_origin, write_png, write_video};
 use common::temp_dir;
 use dualphoton::capture::frame::{check, Roles};
 use dualphoton::capture::settings::FitSettings;
@@ -263,17 +263,7 @@ fn video_frames_decode_in_order_through_ffmpeg() {
     }
     let dir = temp_dir("capture_video");
     // Eight flat grey frames, 40 + 20 n, coded with B-frames (x264's default).
-    for n in 0..8u16 {
-        write_png(&dir.join(format!("f{n}.png")), 64, 48, false, |_, _| 40 + 20 * n);
-    }
-    let status = std::process::Command::new("ffmpeg")
-        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
-        .arg(dir.join("f%d.png"))
-        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
-        .arg(dir.join("cam.mp4"))
-        .status()
-        .unwrap();
-    assert!(status.success());
+    write_video(&dir, "cam", 8, (64, 48), |n, _, _| 40 + 20 * n);
     std::fs::copy(dir.join("cam.mp4"), dir.join("held.mp4")).unwrap();
     let calib = json!({
         "train_videos": [{"file_name": "cam.mp4", "frame_num": 8, "camera_angle_x": 0.5, "camera_hw": [48, 64],
@@ -314,17 +304,7 @@ fn more_frames_than_one_ffmpeg_expression_takes_decode_in_order() {
     // sum of over 100 terms; over 100 lone frames and a run are asked for here.
     let dir = temp_dir("capture_many_frames");
     let (left, right) = (|n: u16| 40 + 10 * (n % 20), |n: u16| 40 + 10 * (n / 20));
-    for n in 0..220u16 {
-        write_png(&dir.join(format!("f{n}.png")), 32, 16, false, |x, _| if x < 16 { left(n) } else { right(n) });
-    }
-    let status = std::process::Command::new("ffmpeg")
-        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
-        .arg(dir.join("f%d.png"))
-        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
-        .arg(dir.join("cam.mp4"))
-        .status()
-        .unwrap();
-    assert!(status.success());
+    write_video(&dir, "cam", 220, (32, 16), |n, x, _| if x < 16 { left(n) } else { right(n) });
     let calib = json!({
         "train_videos": [{"file_name": "cam.mp4", "frame_num": 220, "camera_angle_x": 0.5, "camera_hw": [16, 32],
                           "transform_matrix": looking_at_origin(0.0, 2.0)}],

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::capture::{looking_at_origin, write_png};
+use common::capture::{looking_at_origin, write_png, write_video};
 use common::temp_dir;
 use dualphoton::capture::{calibration, frames, observe, protocol::Protocol};
 use dualphoton::io::npy;
@@ -29,17 +29,7 @@ fn the_protocol_scores_black_as_its_share_of_the_crop() {
 
 /// Encodes `frames` flat grey frames of `code` as `dir/name.mp4` (64x48, H.264).
 fn flat_video(dir: &Path, name: &str, frames: u16, code: u16) {
-    for n in 0..frames {
-        write_png(&dir.join(format!("{name}_{n}.png")), 64, 48, false, |_, _| code);
-    }
-    let status = std::process::Command::new("ffmpeg")
-        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
-        .arg(dir.join(format!("{name}_%d.png")))
-        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
-        .arg(dir.join(format!("{name}.mp4")))
-        .status()
-        .unwrap();
-    assert!(status.success());
+    write_video(dir, name, frames, (64, 48), |_, _, _| code);
 }
 
 #[test]

@@ -20,3 +20,21 @@ pub fn write_png(path: &Path, w: u32, h: u32, sixteen: bool, value: impl Fn(u32,
         image::ImageBuffer::from_fn(w, h, |x, y| image::Luma([value(x, y) as u8])).save(path).unwrap();
     }
 }
+
+/// Writes `frames` grey 8-bit PNG frames `{name}_{n}.png` of `w` x `h`
+/// pixels into `dir`, pixel `(x, y)` of frame `n` being `value(n, x, y)`,
+/// and codes them as `{name}.mp4` with `ffmpeg` (H.264 with B-frames,
+/// x264's default, all but lossless).
+pub fn write_video(dir: &Path, name: &str, frames: u16, (w, h): (u32, u32), value: impl Fn(u16, u32, u32) -> u16) {
+    for n in 0..frames {
+        write_png(&dir.join(format!("{name}_{n}.png")), w, h, false, |x, y| value(n, x, y));
+    }
+    let status = std::process::Command::new("ffmpeg")
+        .args(["-nostdin", "-v", "error", "-y", "-framerate", "30", "-i"])
+        .arg(dir.join(format!("{name}_%d.png")))
+        .args(["-pix_fmt", "yuv420p", "-c:v", "libx264", "-crf", "1"])
+        .arg(dir.join(format!("{name}.mp4")))
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
