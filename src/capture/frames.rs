@@ -89,6 +89,9 @@ fn decode_video(path: &Path, wanted: &[usize], width: usize, height: usize) -> R
     for (select, frames) in select_passes(&sorted, TERMS_PER_PASS) {
         decoded.extend(decode_selected(path, &select, &frames, width, height)?);
     }
+    if sorted == wanted {
+        return Ok(decoded);
+    }
     Ok(wanted.iter().map(|n| decoded[sorted.binary_search(n).unwrap_or(0)].clone()).collect())
 }
 
@@ -123,12 +126,16 @@ fn select_passes(sorted: &[usize], per_pass: usize) -> Vec<(String, Vec<usize>)>
 }
 
 /// The `frames` (ascending) that the `select` expression keeps of the video
-/// at `path`, in one pass of `ffmpeg`.
+/// at `path`, in one pass of `ffmpeg` that stops after the last of them.
 fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, height: usize) -> Result<Vec<Image>> {
+    // `file:` so that a path with a colon is never read as a protocol.
+    let mut input = std::ffi::OsString::from("file:");
+    input.push(path);
     let child = Command::new("ffmpeg")
         .args(["-nostdin", "-v", "error", "-i"])
-        .arg(path)
+        .arg(input)
         .args(["-vf", &format!("select={select}"), "-vsync", "passthrough"])
+        .args(["-frames:v", &frames.len().to_string()])
         .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "pipe:1"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -139,33 +146,49 @@ fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, he
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!("{}: {NO_FFMPEG}", show(path)),
         Err(e) => bail!("{}: cannot run ffmpeg: {e}", show(path)),
     };
-    let frame_bytes = width * height * 3;
-    let mut bytes = Vec::with_capacity(frame_bytes * frames.len());
-    let stdout = child.stdout.take().ok_or_else(|| Error("ffmpeg gave no output".into()))?;
-    // Never take more than the frames asked for (+1 byte to notice a size mismatch).
-    stdout.take((frame_bytes * frames.len() + 1) as u64).read_to_end(&mut bytes)?;
-    let mut stderr = String::new();
-    if let Some(mut e) = child.stderr.take() {
-        e.read_to_string(&mut stderr).ok();
+    // Its messages are read beside its frames, so that neither pipe fills
+    // while the other is waited on.
+    let messages = child.stderr.take().map(|mut e| {
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            e.read_to_string(&mut text).ok();
+            text
+        })
+    });
+    let mut stdout = child.stdout.take().ok_or_else(|| Error("ffmpeg gave no output".into()))?;
+    // Frame by frame, so that only one frame's bytes are ever held.
+    let mut bytes = vec![0u8; width * height * 3];
+    let mut images = Vec::with_capacity(frames.len());
+    while images.len() < frames.len() && stdout.read_exact(&mut bytes).is_ok() {
+        images.push(Image {
+            width,
+            height,
+            data: bytes.chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0)).collect(),
+        });
     }
+    // A byte more than the frames asked for: the video's frames are larger.
+    let more = images.len() == frames.len() && stdout.read(&mut [0u8]).is_ok_and(|n| n > 0);
+    drop(stdout);
     let status = child.wait()?;
-    if !status.success() || bytes.len() != frame_bytes * frames.len() {
+    let stderr = messages.and_then(|m| m.join().ok()).unwrap_or_default();
+    if !status.success() || images.len() != frames.len() || more {
         let what = stderr.lines().next().unwrap_or("its output is not the frames asked for").to_string();
         bail!(
-            "{}: ffmpeg could not decode frames {:?} at {width}x{height}: {}",
+            "{}: ffmpeg could not decode frames {} at {width}x{height}: {}",
             show(path),
-            frames,
+            show_frames(frames),
             crate::error::shorten(&what)
         );
     }
-    Ok(bytes
-        .chunks_exact(frame_bytes)
-        .map(|frame| Image {
-            width,
-            height,
-            data: frame.chunks_exact(3).map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / (3.0 * 255.0)).collect(),
-        })
-        .collect())
+    Ok(images)
+}
+
+/// `frames` for a message: all of them where they are few.
+fn show_frames(frames: &[usize]) -> String {
+    match frames {
+        [first, .., last] if frames.len() > 8 => format!("[{first}, ..., {last}] ({} frames)", frames.len()),
+        _ => format!("{frames:?}"),
+    }
 }
 
 /// One image file as grey code value / full scale; one with an alpha
