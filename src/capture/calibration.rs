@@ -11,7 +11,7 @@
 //! - **`transforms.json`** (NeRF, instant-ngp, nerfstudio): `frames`, a list
 //!   of `{file_path, transform_matrix}`, one per camera; `file_path` names
 //!   an image (a one-frame capture) or a folder of images (one per frame, in
-//!   name order). Or one per camera and frame, each an image: entries with
+//!   the order of the numbers in their names). Or one per camera and frame, each an image: entries with
 //!   the same pose and lens are one camera (see `per_camera`).
 //!   Intrinsics at the top or per camera: either
 //!   `camera_angle_x` or `fl_x`, `fl_y`, `cx`, `cy`; the size `w`, `h`.
@@ -462,7 +462,8 @@ fn existing_image(dir: &Path, name: &str, field: &str) -> Result<PathBuf> {
     })
 }
 
-/// A video, an image, or a folder of images (one per frame, in name order).
+/// A video, an image, or a folder of images (one per frame, in
+/// [`frame_order`]).
 fn frame_source(path: &Path, field: &str) -> Result<Frames> {
     if path.is_dir() {
         let mut images: Vec<PathBuf> = std::fs::read_dir(path)
@@ -470,7 +471,7 @@ fn frame_source(path: &Path, field: &str) -> Result<Frames> {
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| super::frames::is_image(p))
             .collect();
-        images.sort();
+        images.sort_by(|a, b| frame_order(a).cmp(&frame_order(b)).then_with(|| a.cmp(b)));
         if images.is_empty() {
             bail!("{field}: {} holds no PNG, JPEG or .npy images", show(path));
         }
@@ -480,6 +481,26 @@ fn frame_source(path: &Path, field: &str) -> Result<Frames> {
         return Ok(Frames::Images(vec![path.to_path_buf()]));
     }
     bail!("{field}: {} is neither a folder of images nor an image; for a video, use an info.json", show(path))
+}
+
+/// A frame file's place in its folder: its name's runs of digits compared
+/// as numbers and the rest as text, so that `frame2.png` comes before
+/// `frame10.png`, as `ffmpeg -i clip.mp4 frame%d.png` numbers them.
+fn frame_order(path: &Path) -> Vec<(String, u128)> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut key: Vec<(String, u128)> = Vec::new();
+    let mut rest = name.as_str();
+    while !rest.is_empty() {
+        let text_len = rest.find(|c: char| c.is_ascii_digit()).unwrap_or(rest.len());
+        let (text, after) = rest.split_at(text_len);
+        let digits_len = after.find(|c: char| !c.is_ascii_digit()).unwrap_or(after.len());
+        let (digits, after) = after.split_at(digits_len);
+        // Past 38 digits the number saturates; the full path breaks the tie.
+        let number = digits.bytes().fold(0u128, |n, d| n.saturating_mul(10).saturating_add(u128::from(d - b'0')));
+        key.push((text.to_string(), number));
+        rest = after;
+    }
+    key
 }
 
 /// The size of the first image of `frames`, read from its header.
@@ -518,6 +539,19 @@ fn camera_names(paths: &[&str]) -> Result<Vec<String>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_in_a_folder_go_by_the_numbers_in_their_names() {
+        let mut names: Vec<PathBuf> = ["f10.png", "f9.png", "f1.png", "f100.png", "f2.png", "f02.png", "g0.png"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        names.sort_by(|a, b| frame_order(a).cmp(&frame_order(b)).then_with(|| a.cmp(b)));
+        let order: Vec<&str> = names.iter().map(|p| p.to_str().unwrap()).collect();
+        assert_eq!(order, ["f1.png", "f02.png", "f2.png", "f9.png", "f10.png", "f100.png", "g0.png"]);
+        let zero_padded = ["cam/000009.png", "cam/000010.png"].map(PathBuf::from);
+        assert!(frame_order(&zero_padded[0]) < frame_order(&zero_padded[1]));
+    }
 
     #[test]
     fn an_opengl_matrix_looks_down_its_minus_z() {
