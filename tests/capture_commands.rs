@@ -211,6 +211,39 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     let unknown = run("0,2");
     let err = String::from_utf8_lossy(&unknown.stderr);
     assert!(!unknown.status.success() && err.contains("not the settings they were made with"), "{err}");
+    // The nearest view as is comes from a camera that trains, of the held-out camera's size.
+    let nearest = |name: &str, calib: &Value, drop: &[&str]| {
+        let sub = dir.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        for video in ["test.mp4", "near.mp4", "far.mp4", "small.mp4"].iter().filter(|v| dir.join(v).exists()) {
+            std::fs::copy(dir.join(video), sub.join(video)).unwrap();
+        }
+        std::fs::write(sub.join("info.json"), calib.to_string()).unwrap();
+        let run = std::process::Command::new(exe)
+            .arg("--data")
+            .arg(&sub)
+            .args(["--frames", "0", "--models", "emission-absorption", "--fit-settings"])
+            .arg(&no_probe)
+            .args(drop)
+            .arg("--out")
+            .arg(sub.join("out"))
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        std::fs::read_to_string(sub.join("out/baselines.csv")).unwrap()
+    };
+    let csv = nearest("dropped", &calib, &["--drop", "near"]);
+    assert!(csv.contains("training view far as is") && !csv.contains("near"), "{csv}");
+    write_video(&dir, "small", 3, (32, 24), |_, _, _| 80);
+    let mut small = cam("small.mp4", 1.0, 1.732);
+    small["camera_hw"] = json!([24, 32]);
+    let mixed = json!({
+        "train_videos": [cam("far.mp4", 2.0, 0.0), small],
+        "test_videos": [cam("test.mp4", 0.0, 2.0)],
+        "voxel_matrix": UNIT_BOX, "voxel_scale": 1.0,
+    });
+    let csv = nearest("mixed", &mixed, &[]);
+    assert!(csv.contains("training view far as is") && !csv.contains("small"), "{csv}");
 }
 
 /// PINF's `voxel_matrix` of the box [-0.5, 0.5]^3 (with `voxel_scale` 1).

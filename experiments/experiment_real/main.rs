@@ -96,22 +96,30 @@ fn run(mut args: Args) -> Result<()> {
         capture.views[held_out].camera = capture.views[held_out].camera.zoom(k);
     }
     frame::check(&capture, &roles, &scored, &fit_settings)?;
-    let nearest = nearest_training_view(&capture, held_out)?;
+    let nearest = nearest_training_view(&capture, &roles.training, held_out);
     let run = Run::start(&args.out)?;
     reuse::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
     let truth = frames::read(test, &scored)?;
-    let neighbour = frames::read(&capture.views[nearest], &scored)?;
     let mut rows = Vec::new();
-    for ((&frame, truth), neighbour) in scored.iter().zip(&truth).zip(&neighbour) {
-        let black = Image::zeros(truth.width, truth.height);
-        let nearest_name = format!("training view {} as is", capture.views[nearest].name);
-        for (prediction, image) in [("all black".to_string(), &black), (nearest_name, neighbour)] {
-            let score = protocol.score(image, truth);
-            rows.push(Row { frame, prediction, psnr_db: score.psnr, rel_rmse: score.rel_rmse });
+    // The nearest view is read a few frames at a time: only the baselines need it.
+    for (frames_now, truth_now) in scored.chunks(models::FRAMES_AT_ONCE).zip(truth.chunks(models::FRAMES_AT_ONCE)) {
+        let neighbours: Vec<Option<Image>> = match nearest {
+            Some(v) => frames::read(&capture.views[v], frames_now)?.into_iter().map(Some).collect(),
+            None => vec![None; frames_now.len()],
+        };
+        for ((&frame, truth), neighbour) in frames_now.iter().zip(truth_now).zip(neighbours) {
+            let mut predictions = vec![("all black".to_string(), Image::zeros(truth.width, truth.height))];
+            if let (Some(v), Some(image)) = (nearest, neighbour) {
+                predictions.push((format!("training view {} as is", capture.views[v].name), image));
+            }
+            for (prediction, image) in predictions {
+                let score = protocol.score(&image, truth);
+                rows.push(Row { frame, prediction, psnr_db: score.psnr, rel_rmse: score.rel_rmse });
+            }
+            eprintln!("frame {frame}: scored");
         }
-        eprintln!("frame {frame}: scored");
     }
     write_rows(&run.path("baselines.csv"), &rows)?;
     let mut md = summary(&rows, &test.name, &protocol);
@@ -149,13 +157,17 @@ fn every_tenth_and_last(count: usize) -> Vec<usize> {
     frames
 }
 
-/// The other camera whose viewing direction is closest to camera `held_out`'s.
-fn nearest_training_view(capture: &Capture, held_out: usize) -> Result<usize> {
-    let forward = |v: usize| capture.views[v].camera.basis().2;
-    (0..capture.views.len())
-        .filter(|&v| v != held_out && !capture.views[v].held_out)
+/// The training camera whose viewing direction is closest to camera
+/// `held_out`'s, among those of its size (none: no baseline from a view).
+fn nearest_training_view(capture: &Capture, training: &[usize], held_out: usize) -> Option<usize> {
+    let camera = |v: usize| &capture.views[v].camera;
+    let forward = |v: usize| camera(v).basis().2;
+    let same_size = |v: usize| (camera(v).width, camera(v).height) == (camera(held_out).width, camera(held_out).height);
+    training
+        .iter()
+        .copied()
+        .filter(|&v| same_size(v))
         .max_by(|&a, &b| forward(a).dot(&forward(held_out)).total_cmp(&forward(b).dot(&forward(held_out))))
-        .ok_or_else(|| Error("the capture has no training camera".into()))
 }
 
 fn summary(rows: &[Row], held_out: &str, protocol: &Protocol) -> String {

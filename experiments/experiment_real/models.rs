@@ -149,6 +149,10 @@ pub fn rig_note(rig: &Rig, settings: &FitSettings) -> String {
     md
 }
 
+/// How many frames' photographs are read at once: a full-resolution
+/// 1080x1920 photograph takes 16.6 MB, so a clip is never read whole.
+pub const FRAMES_AT_ONCE: usize = 8;
+
 /// Fits every frame of `photographs` under every model of `models`,
 /// scoring the one held-out camera of `roles` against its photograph there
 /// (read once for the baselines and these).
@@ -169,73 +173,77 @@ pub fn run(
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
     let rig = reuse::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
     let shown = figure_frames(&frames);
-    let held = photographs.iter().filter(|(f, _)| todo.contains(f)).map(|&(_, t)| vec![t.clone()]);
-    for images in read_beside(capture, roles, &todo, base.factor, held.collect())? {
-        let frame = images.frame;
-        let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
-        let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
-        for model in pending {
-            let settings = FitSettings { model, ..base.clone() };
-            let result = fit_frame(capture, roles, &images, &settings, rig.as_ref(), &mut |row| {
-                if row.update % 20 == 0 {
-                    eprintln!(
-                        "  frame {frame} {}: stage {} update {} image rmse {:.5} ({:.0} s)",
-                        model.name(),
-                        row.level,
-                        row.update,
-                        row.image_mse.sqrt(),
-                        row.seconds
-                    );
+    // A few frames at a time: a frame's photographs are read at full
+    // resolution before they are downsampled.
+    for frames_now in todo.chunks(FRAMES_AT_ONCE) {
+        let held = photographs.iter().filter(|(f, _)| frames_now.contains(f)).map(|&(_, t)| vec![t.clone()]);
+        for images in read_beside(capture, roles, frames_now, base.factor, held.collect())? {
+            let frame = images.frame;
+            let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
+            let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
+            for model in pending {
+                let settings = FitSettings { model, ..base.clone() };
+                let result = fit_frame(capture, roles, &images, &settings, rig.as_ref(), &mut |row| {
+                    if row.update % 20 == 0 {
+                        eprintln!(
+                            "  frame {frame} {}: stage {} update {} image rmse {:.5} ({:.0} s)",
+                            model.name(),
+                            row.level,
+                            row.update,
+                            row.image_mse.sqrt(),
+                            row.seconds
+                        );
+                    }
+                })?;
+                let held = &result.held_out[0];
+                let fitted = &result.fit;
+                let camera = &capture.views[held.view].camera;
+                let expected = expected_view::score(camera, &held.prediction, fitted, &images.held_out[0]);
+                if shown.contains(&frame) {
+                    figures::keep(views, frame, model.name(), &held.prediction, &fitted.scene.density)?;
                 }
-            })?;
-            let held = &result.held_out[0];
-            let fitted = &result.fit;
-            let camera = &capture.views[held.view].camera;
-            let expected = expected_view::score(camera, &held.prediction, fitted, &images.held_out[0]);
-            if shown.contains(&frame) {
-                figures::keep(views, frame, model.name(), &held.prediction, &fitted.scene.density)?;
-            }
-            let row = FitResult {
-                frame,
-                model: model.name().into(),
-                psnr_db: held.score.psnr,
-                rel_rmse: held.score.rel_rmse,
-                train_rmse: training_rmse(fitted, &images.training.images[0]),
-                train_noise: noise,
-                fit_s: fitted.seconds,
-                render_s: held.render_s,
-                lights: joined(fitted.scene.lights.iter().map(|l| format!("{:.4e}", l.intensity))),
-                emission: fitted.scene.medium.emission,
-                light_share: fitted.light_share,
-                gains: joined(fitted.gains.iter().map(|g| format!("{g:.4}"))),
-                black_levels_codes: joined(fitted.black_levels.iter().map(|b| format!("{:.2}", 255.0 * b))),
-                offsets_px: joined(fitted.offsets_px().iter().map(|o| format!("{:.1}/{:.1}", o[0], o[1]))),
-                zooms: joined(fitted.zooms.iter().map(|z| format!("{z:.4}"))),
-                rolls_deg: joined(fitted.rolls.iter().map(|r| format!("{:.3}", r.to_degrees()))),
-                oracle_gain: Some(held.oracle.gain),
-                psnr_oracle_gain_db: held.oracle.with_gain.psnr,
-                oracle_shift_px: format!("{}/{}", held.oracle.shift[0], held.oracle.shift[1]),
-                psnr_oracle_shift_db: held.oracle.with_shift.psnr,
-                oracle_magnification: Some(held.aligned.magnification),
-                oracle_aligned_shift_px: format!("{}/{}", held.aligned.shift[0], held.aligned.shift[1]),
-                psnr_oracle_aligned_db: held.aligned.score.psnr,
-                rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
-                psnr_expected_db: expected.psnr,
-                rel_rmse_expected: expected.rel_rmse,
-            };
-            eprintln!(
-                "frame {frame} {}: held-out PSNR {}, relative RMSE {} (expected view {}, {}), fit {:.0} s, \
+                let row = FitResult {
+                    frame,
+                    model: model.name().into(),
+                    psnr_db: held.score.psnr,
+                    rel_rmse: held.score.rel_rmse,
+                    train_rmse: training_rmse(fitted, &images.training.images[0]),
+                    train_noise: noise,
+                    fit_s: fitted.seconds,
+                    render_s: held.render_s,
+                    lights: joined(fitted.scene.lights.iter().map(|l| format!("{:.4e}", l.intensity))),
+                    emission: fitted.scene.medium.emission,
+                    light_share: fitted.light_share,
+                    gains: joined(fitted.gains.iter().map(|g| format!("{g:.4}"))),
+                    black_levels_codes: joined(fitted.black_levels.iter().map(|b| format!("{:.2}", 255.0 * b))),
+                    offsets_px: joined(fitted.offsets_px().iter().map(|o| format!("{:.1}/{:.1}", o[0], o[1]))),
+                    zooms: joined(fitted.zooms.iter().map(|z| format!("{z:.4}"))),
+                    rolls_deg: joined(fitted.rolls.iter().map(|r| format!("{:.3}", r.to_degrees()))),
+                    oracle_gain: Some(held.oracle.gain),
+                    psnr_oracle_gain_db: held.oracle.with_gain.psnr,
+                    oracle_shift_px: format!("{}/{}", held.oracle.shift[0], held.oracle.shift[1]),
+                    psnr_oracle_shift_db: held.oracle.with_shift.psnr,
+                    oracle_magnification: Some(held.aligned.magnification),
+                    oracle_aligned_shift_px: format!("{}/{}", held.aligned.shift[0], held.aligned.shift[1]),
+                    psnr_oracle_aligned_db: held.aligned.score.psnr,
+                    rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
+                    psnr_expected_db: expected.psnr,
+                    rel_rmse_expected: expected.rel_rmse,
+                };
+                eprintln!(
+                    "frame {frame} {}: held-out PSNR {}, relative RMSE {} (expected view {}, {}), fit {:.0} s, \
                  render {:.0} s",
-                model.name(),
-                show_score(held.score.psnr, 1.0, 2, " dB"),
-                show_score(held.score.rel_rmse, 100.0, 1, " %"),
-                show_score(expected.psnr, 1.0, 2, " dB"),
-                show_score(expected.rel_rmse, 100.0, 1, " %"),
-                row.fit_s,
-                row.render_s
-            );
-            rows.push(row);
-            write_rows(csv, &rows)?;
+                    model.name(),
+                    show_score(held.score.psnr, 1.0, 2, " dB"),
+                    show_score(held.score.rel_rmse, 100.0, 1, " %"),
+                    show_score(expected.psnr, 1.0, 2, " dB"),
+                    show_score(expected.rel_rmse, 100.0, 1, " %"),
+                    row.fit_s,
+                    row.render_s
+                );
+                rows.push(row);
+                write_rows(csv, &rows)?;
+            }
         }
     }
     Ok((rows, rig))
@@ -364,23 +372,31 @@ pub fn plot(
     floor: &[(usize, f64)],
     protocol: &Protocol,
 ) -> Result<()> {
+    // In frame order, whatever order the frames were fitted in.
+    let in_order = |mut points: Vec<(f64, f64)>| {
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        points
+    };
     let mut series: Vec<Series> = models
         .iter()
         .map(|m| Series {
             name: m.name().into(),
-            points: rows
-                .iter()
-                .filter(|r| r.model == m.name())
-                .filter_map(|r| Some((r.frame as f64, r.psnr_db?)))
-                .collect(),
+            points: in_order(
+                rows.iter()
+                    .filter(|r| r.model == m.name())
+                    .filter_map(|r| Some((r.frame as f64, r.psnr_db?)))
+                    .collect(),
+            ),
             markers: true,
         })
         .collect();
-    series.push(Series {
-        name: "nearest training view as is".into(),
-        points: floor.iter().map(|&(f, p)| (f as f64, p)).collect(),
-        markers: false,
-    });
+    if !floor.is_empty() {
+        series.push(Series {
+            name: "nearest training view as is".into(),
+            points: in_order(floor.iter().map(|&(f, p)| (f as f64, p)).collect()),
+            markers: false,
+        });
+    }
     let title = format!("Held-out camera, {}", protocol.name());
     let axes = Axes { title: &title, x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
     line_chart(path, &axes, &series)
