@@ -101,7 +101,11 @@ fn run(args: Args) -> Result<()> {
             count.saturating_sub(1)
         )));
     }
-    let needed: Vec<usize> = args.frames.iter().flat_map(|&f| f - args.reach..=f + args.reach).collect::<Vec<_>>();
+    // The centres may not repeat; their windows may overlap (--frames 10,11).
+    check(&capture, &roles, &args.frames, &settings)?;
+    let mut needed: Vec<usize> = args.frames.iter().flat_map(|&f| f - args.reach..=f + args.reach).collect();
+    needed.sort_unstable();
+    needed.dedup();
     check(&capture, &roles, &needed, &settings)?;
     let run = Run::start(&args.out)?;
     let rig = reuse::fit_rig(&capture, &roles, &settings)?;

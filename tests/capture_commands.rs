@@ -658,6 +658,9 @@ fn made_capture_writes_a_capture_that_reads_back() {
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("--frames 0: needs 1 frames on each side"), "{err}");
     assert!(!temporal_out.exists(), "a frame at the clip's edge is refused before any output");
+    let refused = temporal(&["--frames", "1,1", "--reach", "1"], &temporal_out);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("frame 1 is given twice"), "{err}");
     // A small grid and short fits: the rig's path, each frame's fit, the mean and the refit all run.
     let small = dir.join("small.json");
     std::fs::write(&small, r#"{"resolution": 16, "updates": [10, 10, 20]}"#).unwrap();
