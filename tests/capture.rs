@@ -52,6 +52,8 @@ fn a_transforms_json_reads_folders_of_images_of_every_kind() {
     let (x, y) = capture.views[0].camera.project(&Vec3::zeros()).unwrap();
     assert!((x - 3.0).abs() < 1e-9 && (y - 2.0).abs() < 1e-9);
     assert_eq!(capture.views[1].camera.intrinsics(), [7.0, 7.0, 2.5, 2.0]);
+    // A `.npy` frame's size from its header: (H, W) is 6 wide, 4 high.
+    assert_eq!(frames::image_size(&dir.join("cam_c/0.npy")).unwrap(), (6, 4));
 
     let a = frames::read(&capture.views[0], &[2, 0]).unwrap();
     assert_eq!(a[0].data[7], (20.0 + 1.0 + 6.0) / 255.0);
@@ -291,6 +293,11 @@ fn video_frames_decode_in_order_through_ffmpeg() {
     view.frames = Frames::Video { path: dir.join("cam.mp4"), count: 20 };
     let err = frames::read(&view, &[12]).unwrap_err().0;
     assert!(err.contains("could not decode frames [12]"), "{err}");
+    // A calibration with width and height swapped: as many bytes a frame, refused all the same.
+    let mut view = capture.views[0].clone();
+    (view.camera.width, view.camera.height) = (48, 64);
+    let err = frames::read(&view, &[1]).unwrap_err().0;
+    assert!(err.contains("its frames are 64x48 but the calibration says 48x64"), "{err}");
 }
 
 #[test]

@@ -5,6 +5,7 @@
 //! together from them at the end.
 
 use dualphoton::capture::protocol::Protocol;
+use dualphoton::capture::{frames, View};
 use dualphoton::error::{Error, Result};
 use dualphoton::image::{auto_white, Image};
 use dualphoton::io::panels::{grey, labelled_grid, signed_error};
@@ -70,19 +71,19 @@ fn read_codes(path: &Path) -> Result<Image> {
 }
 
 /// `held_out_views.svg` and `density_slices.svg` in `out` from the panels in
-/// `dir`, for every figure frame that has all `models`' panels;
-/// `photographs` are the held-out camera's frames at full resolution.
-/// Writes nothing when no frame has them all.
-pub fn compose(out: &Path, dir: &Path, models: &[&str], photographs: &[(usize, &Image)]) -> Result<()> {
+/// `dir`, for every figure frame of `scored` that has all `models`' panels,
+/// beside the held-out camera `test`'s photograph. Writes nothing when no
+/// frame has them all.
+pub fn compose(out: &Path, dir: &Path, models: &[&str], test: &View, scored: &[usize]) -> Result<()> {
     let mut views = Vec::new();
     let mut slices = Vec::new();
-    let shown = figure_frames(&photographs.iter().map(|&(f, _)| f).collect::<Vec<_>>());
-    for &(frame, photo) in photographs.iter().filter(|(f, _)| shown.contains(f)) {
+    let shown = figure_frames(scored);
+    for (&frame, photo) in shown.iter().zip(frames::read(test, &shown)?) {
         if !models.iter().all(|m| view_path(dir, frame, m).exists() && slice_path(dir, frame, m).exists()) {
             continue;
         }
         let protocol = Protocol::for_size(photo.width, photo.height);
-        let truth = protocol.view(photo).downsample(SHRINK);
+        let truth = protocol.view(&photo).downsample(SHRINK);
         let white = auto_white(&truth.data);
         let renders = models.iter().map(|m| read_codes(&view_path(dir, frame, m))).collect::<Result<Vec<_>>>()?;
         let mut row = vec![grey(&truth, white)];

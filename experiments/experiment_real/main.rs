@@ -101,15 +101,15 @@ fn run(mut args: Args) -> Result<()> {
     reuse::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
-    let truth = frames::read(test, &scored)?;
     let mut rows = Vec::new();
-    // The nearest view is read a few frames at a time: only the baselines need it.
-    for (frames_now, truth_now) in scored.chunks(models::FRAMES_AT_ONCE).zip(truth.chunks(models::FRAMES_AT_ONCE)) {
+    // A few frames at a time: a clip's photographs at full resolution take gigabytes.
+    for frames_now in scored.chunks(models::FRAMES_AT_ONCE) {
+        let truth_now = frames::read(test, frames_now)?;
         let neighbours: Vec<Option<Image>> = match nearest {
             Some(v) => frames::read(&capture.views[v], frames_now)?.into_iter().map(Some).collect(),
             None => vec![None; frames_now.len()],
         };
-        for ((&frame, truth), neighbour) in frames_now.iter().zip(truth_now).zip(neighbours) {
+        for ((&frame, truth), neighbour) in frames_now.iter().zip(&truth_now).zip(neighbours) {
             let mut predictions = vec![("all black".to_string(), Image::zeros(truth.width, truth.height))];
             if let (Some(v), Some(image)) = (nearest, neighbour) {
                 predictions.push((format!("training view {} as is", capture.views[v].name), image));
@@ -124,10 +124,9 @@ fn run(mut args: Args) -> Result<()> {
     write_rows(&run.path("baselines.csv"), &rows)?;
     let mut md = summary(&rows, &test.name, &protocol);
     if !args.models.is_empty() {
-        let photographs: Vec<(usize, &Image)> = scored.iter().copied().zip(&truth).collect();
         let views = run.path("views");
         let (fits, rig) =
-            models::run(&capture, &roles, &photographs, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
+            models::run(&capture, &roles, &scored, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
@@ -142,7 +141,7 @@ fn run(mut args: Args) -> Result<()> {
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
         models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows, &protocol)?;
         let names: Vec<&str> = args.models.iter().map(|m| m.name()).collect();
-        figures::compose(&args.out, &views, &names, &photographs)?;
+        figures::compose(&args.out, &views, &names, test, &scored)?;
     }
     std::fs::write(run.path("summary.md"), md)?;
     run.write_manifest(&args)

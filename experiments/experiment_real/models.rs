@@ -7,7 +7,7 @@
 use crate::figures::{self, figure_frames};
 use dualphoton::capture::expected_view;
 use dualphoton::capture::fit::training_rmse;
-use dualphoton::capture::frame::{fit_frame, read_beside, Roles};
+use dualphoton::capture::frame::{self, fit_frame, Roles};
 use dualphoton::capture::observe::temporal_noise;
 use dualphoton::capture::protocol::{Protocol, ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
 use dualphoton::capture::reuse;
@@ -16,7 +16,6 @@ use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::show_score;
-use dualphoton::image::Image;
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
@@ -153,13 +152,12 @@ pub fn rig_note(rig: &Rig, settings: &FitSettings) -> String {
 /// 1080x1920 photograph takes 16.6 MB, so a clip is never read whole.
 pub const FRAMES_AT_ONCE: usize = 8;
 
-/// Fits every frame of `photographs` under every model of `models`,
-/// scoring the one held-out camera of `roles` against its photograph there
-/// (read once for the baselines and these).
+/// Fits every frame of `frames` under every model of `models`, scoring the
+/// one held-out camera of `roles` against its photograph there.
 pub fn run(
     capture: &Capture,
     roles: &Roles,
-    photographs: &[(usize, &Image)],
+    frames: &[usize],
     models: &[ImageModel],
     base: &FitSettings,
     csv: &Path,
@@ -169,15 +167,13 @@ pub fn run(
     let done = |rows: &[FitResult], frame: usize, model: ImageModel| {
         rows.iter().any(|r| r.frame == frame && r.model == model.name())
     };
-    let frames: Vec<usize> = photographs.iter().map(|&(f, _)| f).collect();
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
     let rig = reuse::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
-    let shown = figure_frames(&frames);
+    let shown = figure_frames(frames);
     // A few frames at a time: a frame's photographs are read at full
     // resolution before they are downsampled.
     for frames_now in todo.chunks(FRAMES_AT_ONCE) {
-        let held = photographs.iter().filter(|(f, _)| frames_now.contains(f)).map(|&(_, t)| vec![t.clone()]);
-        for images in read_beside(capture, roles, frames_now, base.factor, held.collect())? {
+        for images in frame::read(capture, roles, frames_now, base.factor)? {
             let frame = images.frame;
             let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
             let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();

@@ -203,19 +203,6 @@ pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -
             per_frame.push(image);
         }
     }
-    read_beside(capture, roles, wanted, factor, held)
-}
-
-/// [`read`] where the held-out photographs were read already: `held[k]`
-/// holds frame `wanted[k]`'s, one per held-out camera in the order of
-/// `roles`.
-pub fn read_beside(
-    capture: &Capture,
-    roles: &Roles,
-    wanted: &[usize],
-    factor: usize,
-    held: Vec<Vec<Image>>,
-) -> Result<Vec<FrameImages>> {
     let training = observe(capture, &roles.training, wanted, factor)?;
     // The held-out photographs are checked as the training ones are: a
     // background left in would otherwise show only as a low score.

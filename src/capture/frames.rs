@@ -44,8 +44,8 @@ pub const IMAGE_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "npy"];
 /// Width and height of an image file, from its header.
 pub fn image_size(path: &Path) -> Result<(usize, usize)> {
     if path.extension().is_some_and(|e| e == "npy") {
-        let image = read_npy(path)?;
-        return Ok((image.width, image.height));
+        let (height, width, _) = npy_frame_shape(path, &npy::read_declared(path, "frame")?.shape)?;
+        return Ok((width, height));
     }
     let (w, h) = image::image_dimensions(path).map_err(|e| Error(format!("{}: {e}", show(path))))?;
     Ok((w as usize, h as usize))
@@ -61,7 +61,7 @@ pub fn read(view: &View, wanted: &[usize]) -> Result<Vec<Image>> {
     }
     let (width, height) = (view.camera.width, view.camera.height);
     let images = match &view.frames {
-        Frames::Video { path, .. } => decode_video(path, wanted, width, height)?,
+        Frames::Video { path, .. } => decode_video(path, wanted)?,
         Frames::Images(paths) => wanted.iter().map(|&n| read_image(&paths[n])).collect::<Result<Vec<_>>>()?,
     };
     for image in &images {
@@ -78,16 +78,16 @@ pub fn read(view: &View, wanted: &[usize]) -> Result<Vec<Image>> {
     Ok(images)
 }
 
-/// Pictures `wanted` of the video at `path`, `width` x `height`, in as few
+/// Pictures `wanted` of the video at `path`, at the size it has, in as few
 /// passes of `ffmpeg` as its `select` filter allows (it keeps them in
 /// stream order).
-fn decode_video(path: &Path, wanted: &[usize], width: usize, height: usize) -> Result<Vec<Image>> {
+fn decode_video(path: &Path, wanted: &[usize]) -> Result<Vec<Image>> {
     let mut sorted = wanted.to_vec();
     sorted.sort_unstable();
     sorted.dedup();
     let mut decoded = Vec::with_capacity(sorted.len());
     for (select, frames) in select_passes(&sorted, TERMS_PER_PASS) {
-        decoded.extend(decode_selected(path, &select, &frames, width, height)?);
+        decoded.extend(decode_selected(path, &select, &frames)?);
     }
     if sorted == wanted {
         return Ok(decoded);
@@ -127,7 +127,7 @@ fn select_passes(sorted: &[usize], per_pass: usize) -> Vec<(String, Vec<usize>)>
 
 /// The `frames` (ascending) that the `select` expression keeps of the video
 /// at `path`, in one pass of `ffmpeg` that stops after the last of them.
-fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, height: usize) -> Result<Vec<Image>> {
+fn decode_selected(path: &Path, select: &str, frames: &[usize]) -> Result<Vec<Image>> {
     // `file:` so that a path with a colon is never read as a protocol.
     let mut input = std::ffi::OsString::from("file:");
     input.push(path);
@@ -136,7 +136,10 @@ fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, he
         .arg(input)
         .args(["-vf", &format!("select={select}"), "-vsync", "passthrough"])
         .args(["-frames:v", &frames.len().to_string()])
-        .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "pipe:1"])
+        // PPM: each picture's header gives its size, so that a video of
+        // another size than the calibration's (width and height swapped
+        // have as many bytes) is refused rather than read scrambled.
+        .args(["-f", "image2pipe", "-c:v", "ppm", "-pix_fmt", "rgb24", "pipe:1"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -155,11 +158,16 @@ fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, he
             text
         })
     });
-    let mut stdout = child.stdout.take().ok_or_else(|| Error("ffmpeg gave no output".into()))?;
+    let stdout = child.stdout.take().ok_or_else(|| Error("ffmpeg gave no output".into()))?;
+    let mut stdout = std::io::BufReader::new(stdout);
     // Frame by frame, so that only one frame's bytes are ever held.
-    let mut bytes = vec![0u8; width * height * 3];
     let mut images = Vec::with_capacity(frames.len());
-    while images.len() < frames.len() && stdout.read_exact(&mut bytes).is_ok() {
+    while images.len() < frames.len() {
+        let Some((width, height)) = read_ppm_header(&mut stdout) else { break };
+        let mut bytes = vec![0u8; width * height * 3];
+        if stdout.read_exact(&mut bytes).is_err() {
+            break;
+        }
         images.push(Image {
             width,
             height,
@@ -174,13 +182,36 @@ fn decode_selected(path: &Path, select: &str, frames: &[usize], width: usize, he
     if !status.success() || images.len() != frames.len() || more {
         let what = stderr.lines().next().unwrap_or("its output is not the frames asked for").to_string();
         bail!(
-            "{}: ffmpeg could not decode frames {} at {width}x{height}: {}",
+            "{}: ffmpeg could not decode frames {}: {}",
             show(path),
             show_frames(frames),
             crate::error::shorten(&what)
         );
     }
     Ok(images)
+}
+
+/// The width and height in the header of a binary 8-bit PPM picture
+/// (`P6 width height 255` and one whitespace byte), or `None` at the end
+/// of the stream or on a header that is not one (of at most 2^28 pixels).
+fn read_ppm_header(r: &mut impl std::io::BufRead) -> Option<(usize, usize)> {
+    let mut fields = Vec::new();
+    let mut field = Vec::new();
+    while fields.len() < 4 {
+        let mut byte = [0u8];
+        r.read_exact(&mut byte).ok()?;
+        if !byte[0].is_ascii_whitespace() {
+            field.push(byte[0]);
+        } else if !field.is_empty() {
+            fields.push(String::from_utf8(std::mem::take(&mut field)).ok()?);
+        }
+        if field.len() > 16 {
+            return None;
+        }
+    }
+    let number = |s: &str| s.parse::<usize>().ok().filter(|&n| n > 0);
+    let (width, height) = (number(&fields[1])?, number(&fields[2])?);
+    (fields[0] == "P6" && fields[3] == "255" && width.checked_mul(height)? <= 1 << 28).then_some((width, height))
 }
 
 /// `frames` for a message: all of them where they are few.
@@ -217,11 +248,7 @@ fn read_image(path: &Path) -> Result<Image> {
 /// A `.npy` frame: (H, W) or (H, W, C), channels averaged.
 fn read_npy(path: &Path) -> Result<Image> {
     let a = npy::read(path, "frame")?;
-    let (height, width, channels) = match a.shape[..] {
-        [h, w] => (h, w, 1),
-        [h, w, c] if c > 0 => (h, w, c),
-        _ => bail!("{}: shape {:?} is not (H, W) or (H, W, C)", show(path), a.shape),
-    };
+    let (height, width, channels) = npy_frame_shape(path, &a.shape)?;
     let scale = if a.element == npy::Element::U8 { 255.0 } else { 1.0 };
     let data: Vec<f64> =
         a.data.chunks_exact(channels).map(|p| p.iter().sum::<f64>() / (channels as f64 * scale)).collect();
@@ -229,6 +256,15 @@ fn read_npy(path: &Path) -> Result<Image> {
         bail!("{}: holds NaN or infinity", show(path));
     }
     Ok(Image { width, height, data })
+}
+
+/// Height, width and channels of a `.npy` frame of `shape`.
+fn npy_frame_shape(path: &Path, shape: &[usize]) -> Result<(usize, usize, usize)> {
+    match shape[..] {
+        [h, w] => Ok((h, w, 1)),
+        [h, w, c] if c > 0 => Ok((h, w, c)),
+        _ => bail!("{}: shape {shape:?} is not (H, W) or (H, W, C)", show(path)),
+    }
 }
 
 #[cfg(test)]
@@ -247,5 +283,15 @@ mod tests {
         assert_eq!(passes.iter().map(|(_, f)| f.len()).collect::<Vec<_>>(), vec![50, 50, 20]);
         assert_eq!(passes.iter().flat_map(|(_, f)| f.clone()).collect::<Vec<_>>(), odd);
         assert!(select_passes(&[], TERMS_PER_PASS).is_empty());
+    }
+
+    #[test]
+    fn a_ppm_header_gives_the_size_and_leaves_the_pixels() {
+        let mut stream: &[u8] = b"P6\n3 2\n255\nabcdefghijklmnopqr";
+        assert_eq!(read_ppm_header(&mut stream), Some((3, 2)));
+        assert_eq!(stream, b"abcdefghijklmnopqr");
+        for bad in [&b""[..], b"P6\n3 2\n", b"P5\n3 2\n255\n", b"P6\n3 0\n255\n", b"P6\n3 2\n65535\n", b"P6 x 2 255 "] {
+            assert_eq!(read_ppm_header(&mut { bad }), None, "{}", String::from_utf8_lossy(bad));
+        }
     }
 }

@@ -79,11 +79,8 @@ pub fn max_file_bytes() -> u64 {
 pub fn read(path: &Path, what: &str) -> Result<Array> {
     use std::io::Read;
     let fail = |msg: String| Error(format!("{what}: {}: {msg}", crate::error::show(path)));
-    let (file, len) = open_regular(path, max_file_bytes()).map_err(fail)?;
-    let mut file = file.take(len + 1);
-    let mut bytes = Vec::new();
+    let (mut file, len, mut bytes) = open_header(path).map_err(fail)?;
     let cannot = |e: std::io::Error| fail(format!("cannot read: {e}"));
-    file.by_ref().take((12 + MAX_HEADER) as u64).read_to_end(&mut bytes).map_err(cannot)?;
     // A header that does not parse is reported by `parse` below, with the whole file.
     if let Ok(d) = declared(&bytes) {
         if d.header_end as u64 + d.data_bytes as u64 != len {
@@ -96,6 +93,26 @@ pub fn read(path: &Path, what: &str) -> Result<Array> {
     }
     file.read_to_end(&mut bytes).map_err(cannot)?;
     parse(&bytes).map_err(|e| fail(e.0))
+}
+
+/// What the `.npy` file at `path` declares, from its header alone (its
+/// data is never read); errors as [`read`]'s.
+pub fn read_declared(path: &Path, what: &str) -> Result<Declared> {
+    let fail = |msg: String| Error(format!("{what}: {}: {msg}", crate::error::show(path)));
+    let (_, _, bytes) = open_header(path).map_err(fail)?;
+    declared(&bytes).map_err(|e| fail(e.0))
+}
+
+/// The regular file at `path` opened, its length, and its first bytes (as
+/// many as the longest header read takes); the rest is left to read, at
+/// most its length and one byte more (to notice a file that grows).
+fn open_header(path: &Path) -> std::result::Result<(std::io::Take<std::fs::File>, u64, Vec<u8>), String> {
+    use std::io::Read;
+    let (file, len) = open_regular(path, max_file_bytes())?;
+    let mut file = file.take(len + 1);
+    let mut bytes = Vec::new();
+    file.by_ref().take((12 + MAX_HEADER) as u64).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
+    Ok((file, len, bytes))
 }
 
 /// [`read`], then a check that every value is finite and fits in float32
