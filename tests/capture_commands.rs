@@ -112,24 +112,34 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     // The rig without its probe fit under multiple scattering (a test of its own).
     let no_probe = dir.join("no_probe.json");
     std::fs::write(&no_probe, r#"{"rig_lit_share": null}"#).unwrap();
-    let run = |frames: &str| {
+    let run_models = |frames: &str, models: &str, out: &std::path::Path| {
         std::process::Command::new(exe)
             .arg("--data")
             .arg(&dir)
-            .args(["--frames", frames, "--models", "emission-absorption", "--fit-settings"])
+            .args(["--frames", frames, "--models", models, "--fit-settings"])
             .arg(&no_probe)
             .arg("--out")
-            .arg(&out)
+            .arg(out)
             .output()
             .unwrap()
     };
+    let run = |frames: &str| run_models(frames, "emission-absorption", &out);
     let bad = run("0,3");
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("frame 3 is out of range"), "{err}");
+    let bad = run_models("0,2", "emission-absorption,fog", &out);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("'fog' is not an image model"), "{err}");
     assert!(!out.exists(), "an invalid option is refused before any output");
+    // `--models none`: the baselines alone.
+    let baselines_only = dir.join("baselines_only");
+    let ok = run_models("0,2", "none", &baselines_only);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    assert!(baselines_only.join("baselines.csv").exists() && !baselines_only.join("fits.csv").exists());
     let ok = run("0,2");
     assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
     let csv = std::fs::read_to_string(out.join("baselines.csv")).unwrap();
+    assert_eq!(std::fs::read_to_string(baselines_only.join("baselines.csv")).unwrap(), csv);
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 4, "{csv}");
     for row in &rows {

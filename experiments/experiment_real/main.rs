@@ -50,9 +50,9 @@ struct Args {
     /// Frames scored [default: 0, 10, 20, ... and the capture's last; for ScalarFlow's 120, 0 to 110 and 119].
     #[arg(long, value_delimiter = ',')]
     frames: Option<Vec<usize>>,
-    /// Image models fitted (none: the baselines only).
-    #[arg(long, value_delimiter = ',', default_value = "multiple,single,emission-absorption")]
-    models: Vec<ImageModel>,
+    /// Image models fitted, comma-separated, or `none` (the baselines only).
+    #[arg(long, default_value = "multiple,single,emission-absorption")]
+    models: Models,
     /// Fit settings (JSON; fields not given keep their defaults), as `dualphoton fit --capture --study` takes them.
     #[arg(long, visible_alias = "study")]
     fit_settings: Option<PathBuf>,
@@ -62,6 +62,27 @@ struct Args {
     /// Output directory.
     #[arg(long, default_value = "results/scalarflow_real")]
     out: PathBuf,
+}
+
+/// `--models`: image models, or none.
+#[derive(Clone, Debug, Serialize)]
+#[serde(transparent)]
+struct Models(Vec<ImageModel>);
+
+impl std::str::FromStr for Models {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        if s == "none" {
+            return Ok(Models(Vec::new()));
+        }
+        let model = |m: &str| {
+            <ImageModel as clap::ValueEnum>::from_str(m, false).map_err(|_| {
+                format!("'{m}' is not an image model: give multiple, single or emission-absorption (comma-separated), or none")
+            })
+        };
+        s.split(',').map(model).collect::<std::result::Result<_, _>>().map(Models)
+    }
 }
 
 /// One line of baselines.csv.
@@ -80,6 +101,7 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(mut args: Args) -> Result<()> {
+    let image_models = args.models.0.clone();
     let smoke_box = args.smoke_box.corners()?;
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     capture.smoke_box = smoke_box.or(capture.smoke_box);
@@ -98,7 +120,7 @@ fn run(mut args: Args) -> Result<()> {
     frame::check(&capture, &roles, &scored, &fit_settings)?;
     let nearest = nearest_training_view(&capture, &roles.training, held_out);
     let run = Run::start(&args.out)?;
-    reuse::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !args.models.is_empty())?;
+    reuse::RunSettings::of(&capture, &roles, &fit_settings)?.record(&args.out, !image_models.is_empty())?;
     let test = &capture.views[held_out];
     let protocol = Protocol::for_size(test.camera.width, test.camera.height);
     let mut rows = Vec::new();
@@ -123,24 +145,24 @@ fn run(mut args: Args) -> Result<()> {
     }
     write_rows(&run.path("baselines.csv"), &rows)?;
     let mut md = summary(&rows, &test.name, &protocol);
-    if !args.models.is_empty() {
+    if !image_models.is_empty() {
         let views = run.path("views");
         let (fits, rig) =
-            models::run(&capture, &roles, &scored, &args.models, &fit_settings, &run.path("fits.csv"), &views)?;
+            models::run(&capture, &roles, &scored, &image_models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
              the held-out camera rendered at full resolution and scored as above. Mean over frames:\n\n",
             roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect::<Vec<_>>().join(", ")
         );
-        md += &models::table(&fits, &args.models);
+        md += &models::table(&fits, &image_models);
         if let Some(rig) = &rig {
             md += &models::rig_note(rig, &fit_settings);
         }
         let nearest_rows: Vec<(usize, f64)> =
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
-        models::plot(&run.path("psnr_per_frame.svg"), &fits, &args.models, &nearest_rows, &protocol)?;
-        let names: Vec<&str> = args.models.iter().map(|m| m.name()).collect();
+        models::plot(&run.path("psnr_per_frame.svg"), &fits, &image_models, &nearest_rows, &protocol)?;
+        let names: Vec<&str> = image_models.iter().map(|m| m.name()).collect();
         figures::compose(&args.out, &views, &names, test, &scored)?;
     }
     std::fs::write(run.path("summary.md"), md)?;
