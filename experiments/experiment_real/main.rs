@@ -50,7 +50,7 @@ struct Args {
     /// Frames scored [default: 0, 10, 20, ... and the capture's last; for ScalarFlow's 120, 0 to 110 and 119].
     #[arg(long, value_delimiter = ',')]
     frames: Option<Vec<usize>>,
-    /// Image models fitted, comma-separated, or `none` (the baselines only).
+    /// Image models fitted, comma-separated (multiple, single, emission-absorption), or `none` (the baselines only).
     #[arg(long, default_value = "multiple,single,emission-absorption")]
     models: Models,
     /// Fit settings (JSON; fields not given keep their defaults), as `dualphoton fit --capture --study` takes them.
