@@ -77,11 +77,10 @@ fn read_codes(path: &Path) -> Result<Image> {
 pub fn compose(out: &Path, dir: &Path, models: &[&str], test: &View, scored: &[usize]) -> Result<()> {
     let mut views = Vec::new();
     let mut slices = Vec::new();
-    let shown = figure_frames(scored);
+    let has_panels =
+        |&f: &usize| models.iter().all(|m| view_path(dir, f, m).exists() && slice_path(dir, f, m).exists());
+    let shown: Vec<usize> = figure_frames(scored).into_iter().filter(has_panels).collect();
     for (&frame, photo) in shown.iter().zip(frames::read(test, &shown)?) {
-        if !models.iter().all(|m| view_path(dir, frame, m).exists() && slice_path(dir, frame, m).exists()) {
-            continue;
-        }
         let protocol = Protocol::for_size(photo.width, photo.height);
         let truth = protocol.view(&photo).downsample(SHRINK);
         let white = auto_white(&truth.data);

@@ -78,7 +78,9 @@ impl std::str::FromStr for Models {
         }
         let model = |m: &str| {
             <ImageModel as clap::ValueEnum>::from_str(m, false).map_err(|_| {
-                format!("'{m}' is not an image model: give multiple, single or emission-absorption (comma-separated), or none")
+                let names: Vec<&str> =
+                    <ImageModel as clap::ValueEnum>::value_variants().iter().map(|v| v.name()).collect();
+                format!("'{m}' is not an image model: give {} (comma-separated), or none", names.join(", "))
             })
         };
         s.split(',').map(model).collect::<std::result::Result<_, _>>().map(Models)
@@ -101,7 +103,7 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(mut args: Args) -> Result<()> {
-    let image_models = args.models.0.clone();
+    let image_models = &args.models.0;
     let smoke_box = args.smoke_box.corners()?;
     let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
     capture.smoke_box = smoke_box.or(capture.smoke_box);
@@ -148,20 +150,20 @@ fn run(mut args: Args) -> Result<()> {
     if !image_models.is_empty() {
         let views = run.path("views");
         let (fits, rig) =
-            models::run(&capture, &roles, &scored, &image_models, &fit_settings, &run.path("fits.csv"), &views)?;
+            models::run(&capture, &roles, &scored, image_models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
              the held-out camera rendered at full resolution and scored as above. Mean over frames:\n\n",
             roles.training.iter().map(|&v| capture.views[v].name.as_str()).collect::<Vec<_>>().join(", ")
         );
-        md += &models::table(&fits, &image_models);
+        md += &models::table(&fits, image_models);
         if let Some(rig) = &rig {
             md += &models::rig_note(rig, &fit_settings);
         }
         let nearest_rows: Vec<(usize, f64)> =
             rows.iter().filter(|r| r.prediction != "all black").filter_map(|r| Some((r.frame, r.psnr_db?))).collect();
-        models::plot(&run.path("psnr_per_frame.svg"), &fits, &image_models, &nearest_rows, &protocol)?;
+        models::plot(&run.path("psnr_per_frame.svg"), &fits, image_models, &nearest_rows, &protocol)?;
         let names: Vec<&str> = image_models.iter().map(|m| m.name()).collect();
         figures::compose(&args.out, &views, &names, test, &scored)?;
     }
