@@ -125,7 +125,7 @@ fn run(args: Args) -> Result<()> {
     let (learn_res, learn_seed) = made_truth(&args.learn_data)?;
     let scored_truth = made_truth(&args.data).ok();
     let open = |data: &Path, frames: &[usize]| -> Result<(Capture, Roles)> {
-        let capture = calibration::open(data, None)?;
+        let capture = calibration::open(data, None, None)?;
         let roles = args.cameras.roles(&capture)?;
         check(&capture, &roles, frames, &settings)?;
         Ok((capture, roles))

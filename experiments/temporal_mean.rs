@@ -90,7 +90,7 @@ fn run(args: Args) -> Result<()> {
     if args.frames.is_empty() || args.models.is_empty() || args.reach == 0 {
         return Err(Error("--frames and --models: give at least one each; --reach: at least 1".into()));
     }
-    let capture = calibration::open(&args.data, None)?;
+    let capture = calibration::open(&args.data, None, None)?;
     let roles = args.cameras.roles(&capture)?;
     let settings = FitSettings::read_option(args.fit_settings.as_deref(), "--fit-settings")?;
     let count = capture.frame_count();
@@ -108,7 +108,7 @@ fn run(args: Args) -> Result<()> {
     needed.dedup();
     check(&capture, &roles, &needed, &settings)?;
     let run = Run::start(&args.out)?;
-    let rig = reuse::fit_rig(&capture, &roles, &settings)?;
+    let rig = reuse::fit_rig(&capture, &roles, &settings, None)?;
     if let Some(rig) = &rig {
         reuse::write_rig(&run.path("rig.json"), rig)?;
     }

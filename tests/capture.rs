@@ -376,3 +376,60 @@ fn the_shipped_video_decodes_as_the_reference_decoder_decoded_it() {
         }
     }
 }
+
+/// What other tools write is read as they mean it: instant-ngp's sizes as
+/// floats, a camera's own field of view before a shared focal length, a
+/// principal point beside a field of view, `.npy` frames with alpha or an
+/// upper-case extension; and what cannot be meant is a one-line error: a
+/// focal length of 0, a camera with a frame fewer, a negative brightness,
+/// an unreadable image named for what is wrong with it.
+#[test]
+fn calibrations_and_frames_of_other_tools_are_read_as_they_mean() {
+    let dir = temp_dir("capture_other_tools");
+    for cam in ["a", "b"] {
+        std::fs::create_dir_all(dir.join(cam)).unwrap();
+        for n in 0..2u16 {
+            write_png(&dir.join(cam).join(format!("{n}.png")), 6, 4, false, |x, _| 10 * n + x as u16);
+        }
+    }
+    let load = |calib: Value| {
+        std::fs::write(dir.join("transforms.json"), calib.to_string()).unwrap();
+        calibration::load(&dir.join("transforms.json"))
+    };
+    let entry = |cam: &str, x: f64| json!({"file_path": cam, "transform_matrix": looking_at_origin(x, 2.0)});
+    // Sizes as floats; a camera's own angle and principal point over the top's focal length.
+    let mut b = entry("b", 1.0);
+    b["camera_angle_x"] = json!(0.5);
+    b["cx"] = json!(2.0);
+    let capture = load(json!({"w": 6.0, "h": 4.0, "fl_x": 9.0, "frames": [entry("a", 0.0), b]})).unwrap();
+    assert_eq!(capture.views[0].camera.intrinsics(), [9.0, 9.0, 3.0, 2.0]);
+    let f = 3.0 / 0.25f64.tan();
+    assert_eq!(capture.views[1].camera.intrinsics(), [f, f, 2.0, 2.0]);
+    // A focal length of 0, a size that is not whole.
+    for (calib, says) in [
+        (json!({"fl_x": 0.0, "frames": [entry("a", 0.0)]}), "fl_x: 0 must be a positive number of pixels"),
+        (json!({"fl_x": 9.0, "fl_y": -9.0, "frames": [entry("a", 0.0)]}), "fl_y: -9 must be a positive"),
+        (json!({"w": 6.5, "h": 4, "camera_angle_x": 0.5, "frames": [entry("a", 0.0)]}), "w: 6.5 is not a whole"),
+    ] {
+        let err = load(calib).unwrap_err().0;
+        assert!(err.contains(says) && !err.contains('\n'), "{err}");
+    }
+    // A camera with a frame fewer: not paired with another instant's frames.
+    std::fs::remove_file(dir.join("b/0.png")).unwrap();
+    let err = load(json!({"camera_angle_x": 0.5, "frames": [entry("a", 0.0), entry("b", 1.0)]})).unwrap_err().0;
+    assert!(err.contains("camera a has 2 frames, camera b 1"), "{err}");
+    // Without w and h, an unreadable first image says why.
+    std::fs::write(dir.join("b/0.png"), b"not a png").unwrap();
+    let err = load(json!({"camera_angle_x": 0.5, "frames": [entry("b", 1.0)]})).unwrap_err().0;
+    assert!(err.contains("give w and h") && err.contains("0.png: "), "{err}");
+    // `.NPY` frames: grey and alpha composited over black as a PNG's; negative brightness refused.
+    std::fs::create_dir_all(dir.join("c")).unwrap();
+    let pixels: Vec<f64> = (0..24).flat_map(|i| [0.5, if i == 0 { 1.0 } else { 0.2 }]).collect();
+    npy::write_f32(&dir.join("c/0.NPY"), &[4, 6, 2], &pixels).unwrap();
+    let capture = load(json!({"camera_angle_x": 0.5, "frames": [entry("c", 0.0)]})).unwrap();
+    let frame = frames::read(&capture.views[0], &[0]).unwrap().remove(0);
+    assert_eq!((frame.data[0], frame.data[1]), (0.5, 0.5 * 0.2f32 as f64));
+    npy::write_f32(&dir.join("c/0.NPY"), &[4, 6], &[vec![-0.25], vec![0.1; 23]].concat()).unwrap();
+    let err = frames::read(&capture.views[0], &[0]).unwrap_err().0;
+    assert!(err.contains("value -0.25 at pixel 0") && err.contains("negative"), "{err}");
+}

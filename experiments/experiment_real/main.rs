@@ -105,8 +105,7 @@ fn main() -> std::process::ExitCode {
 fn run(mut args: Args) -> Result<()> {
     let image_models = &args.models.0;
     let smoke_box = args.smoke_box.corners()?;
-    let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref())?;
-    capture.smoke_box = smoke_box.or(capture.smoke_box);
+    let mut capture = calibration::open(&args.data, args.focal_lengths.as_deref(), smoke_box)?;
     let roles = args.cameras.roles(&capture)?;
     // The manifest records the frames scored, given or not.
     let scored = args.frames.get_or_insert_with(|| every_tenth_and_last(capture.frame_count())).clone();

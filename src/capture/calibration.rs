@@ -72,9 +72,11 @@ pub fn locate(path: &Path) -> PathBuf {
 
 /// The capture whose calibration is at `path` (a file or the folder holding
 /// it, see [`locate`]), with the focal lengths of ScalarFlow's camera file
-/// `focal_lengths` if given ([`super::scalarflow_cameras`]).
-pub fn open(path: &Path, focal_lengths: Option<&Path>) -> Result<Capture> {
-    let mut capture = load(&locate(path))?;
+/// `focal_lengths` if given ([`super::scalarflow_cameras`]) and the smoke
+/// box `smoke_box` if given (the user's `--box`) in place of the
+/// calibration's.
+pub fn open(path: &Path, focal_lengths: Option<&Path>, smoke_box: Option<(Vec3, Vec3)>) -> Result<Capture> {
+    let mut capture = load_boxed(&locate(path), smoke_box)?;
     if let Some(file) = focal_lengths {
         super::scalarflow_cameras::refocus(&mut capture, file).map_err(|e| Error(format!("--focal-lengths: {e}")))?;
     }
@@ -86,6 +88,13 @@ pub fn open(path: &Path, focal_lengths: Option<&Path>) -> Result<Capture> {
 /// rotation and translation, a field of view outside (0, pi), a frame source
 /// that does not exist.
 pub fn load(path: &Path) -> Result<Capture> {
+    load_boxed(path, None)
+}
+
+/// [`load`] with the smoke box `given` in place of the calibration's, whose
+/// `voxel_matrix` is then not read: a box the user gives replaces one the
+/// file gets wrong.
+pub fn load_boxed(path: &Path, given: Option<(Vec3, Vec3)>) -> Result<Capture> {
     let shown = show(path);
     let bytes = npy::read_bounded(path, MAX_BYTES).map_err(|e| Error(format!("calibration {shown}: {e}")))?;
     let text = String::from_utf8(bytes).map_err(|_| Error(format!("calibration {shown}: not UTF-8 text")))?;
@@ -93,23 +102,25 @@ pub fn load(path: &Path) -> Result<Capture> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let top = Fields::lenient(&root, "")?;
     let capture = if top.get("train_videos").is_some() {
-        info_json(&top, dir)
+        info_json(&top, dir, given.is_none())
     } else if top.get("frames").is_some() {
         transforms_json(&top, dir)
     } else {
         Err(Error("neither train_videos (an info.json) nor frames (a transforms.json) is there".into()))
     };
-    let capture = capture.map_err(|e| Error(format!("calibration {shown}: {e}")))?;
+    let mut capture = capture.and_then(same_frame_counts).map_err(|e| Error(format!("calibration {shown}: {e}")))?;
     if capture.views.is_empty() {
         bail!("calibration {shown}: no cameras");
     }
+    capture.smoke_box = given.or(capture.smoke_box);
     if let Some(warning) = nearly_one_camera(&capture.views) {
         eprintln!("warning: calibration {shown}: {warning}");
     }
     Ok(capture)
 }
 
-fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
+/// The capture of an `info.json`, its smoke box read where `with_box`.
+fn info_json(top: &Fields, dir: &Path, with_box: bool) -> Result<Capture> {
     let mut found = Vec::new();
     for (key, held_out) in [("train_videos", false), ("test_videos", true)] {
         if key == "test_videos" && top.get(key).is_none() {
@@ -147,7 +158,7 @@ fn info_json(top: &Fields, dir: &Path) -> Result<Capture> {
     }
     let views = named(found)?;
     let smoke_box = match (top.get("voxel_matrix"), top.get("voxel_scale")) {
-        (Some(_), Some(_)) => {
+        (Some(_), Some(_)) if with_box => {
             Some(smoke_box(&top.required::<Vec<[f64; 4]>>("voxel_matrix")?, &top.required("voxel_scale")?)?)
         }
         _ => None,
@@ -162,23 +173,19 @@ fn transforms_json(top: &Fields, dir: &Path) -> Result<Capture> {
         let file: String = f.required("file_path")?;
         let source = existing_image(dir, &file, &f.name("file_path"))?;
         let frames = frame_source(&source, &f.name("file_path"))?;
-        let pick = |key: &str| inherited::<f64>(&f, top, key);
-        let (width, height) = match (inherited(&f, top, "w")?, inherited(&f, top, "h")?) {
-            (Some(w), Some(h)) => (w, h),
-            _ => {
-                image_size(&frames).ok_or_else(|| Error(format!("{path}: give w and h (the image size in pixels)")))?
-            }
+        // A size as instant-ngp writes it (`"w": 1920.0`) is a count too.
+        let size = |key: &str| -> Result<Option<u64>> {
+            Ok(match f.optional_count(key)? {
+                Some(n) => Some(n),
+                None => top.optional_count(key)?,
+            })
         };
-        let lens = match (pick("fl_x")?, pick("camera_angle_x")?) {
-            (Some(fx), _) => {
-                let fy = pick("fl_y")?.unwrap_or(fx);
-                let cx = pick("cx")?.unwrap_or(0.5 * width as f64);
-                let cy = pick("cy")?.unwrap_or(0.5 * height as f64);
-                Lens::Pinhole { fx, fy, cx, cy }
-            }
-            (None, Some(angle)) => lens_from_angle(angle, width, height, &format!("{path}.camera_angle_x"))?,
-            (None, None) => bail!("{path}: no intrinsics: give camera_angle_x or fl_x (here or at the top)"),
+        let (width, height) = match (size("w")?, size("h")?) {
+            (Some(w), Some(h)) => (usize::try_from(w).unwrap_or(usize::MAX), usize::try_from(h).unwrap_or(usize::MAX)),
+            _ => first_image_size(&frames)
+                .map_err(|e| Error(format!("{path}: give w and h (the image size in pixels): {e}")))?,
         };
+        let lens = transforms_lens(&f, top, &path, width, height)?;
         pinhole(&f, top, &path)?;
         let camera = posed(&f, lens, width, height)?;
         let time: Option<f64> = f.optional("time")?;
@@ -364,14 +371,50 @@ fn pinhole(camera: &Fields, top: &Fields, path: &str) -> Result<()> {
 /// A square-pixel lens with horizontal field of view `angle` (radians) over
 /// `width`, principal point at the image centre.
 fn lens_from_angle(angle: f64, width: usize, height: usize, field: &str) -> Result<Lens> {
-    if !(angle > 0.0 && angle < std::f64::consts::PI) {
-        bail!("{field}: {angle} must be a field of view in (0, pi) radians");
-    }
     if width == 0 || height == 0 {
         bail!("{field}: the image size {width}x{height} is empty");
     }
-    let f = 0.5 * width as f64 / (0.5 * angle).tan();
+    let f = focal_from_angle(angle, width, field)?;
     Ok(Lens::Pinhole { fx: f, fy: f, cx: 0.5 * width as f64, cy: 0.5 * height as f64 })
+}
+
+/// The focal length in pixels of a field of view `angle` (radians) over `pixels`.
+fn focal_from_angle(angle: f64, pixels: usize, field: &str) -> Result<f64> {
+    if !(angle > 0.0 && angle < std::f64::consts::PI) {
+        bail!("{field}: {angle} must be a field of view in (0, pi) radians");
+    }
+    Ok(0.5 * pixels as f64 / (0.5 * angle).tan())
+}
+
+/// The lens of camera `path` of a `transforms.json`, read as nerfstudio
+/// reads it: the camera's own focal length if it gives `fl_x` or
+/// `camera_angle_x`, else the top's (a camera's own field of view is never
+/// overridden by a shared focal length); `fl_x` before `camera_angle_x`;
+/// `fl_y` (or `camera_angle_y` over the height) from the same place, else
+/// square pixels; `cx` and `cy` (the camera's, else the top's), else the
+/// image centre. Errors: a focal length that is not positive, a principal
+/// point that is not finite.
+fn transforms_lens(camera: &Fields, top: &Fields, path: &str, width: usize, height: usize) -> Result<Lens> {
+    let own = camera.get("fl_x").is_some() || camera.get("camera_angle_x").is_some();
+    let level = if own { camera } else { top };
+    let focal = |key: &str, angle_key: &str, pixels: usize| -> Result<Option<f64>> {
+        match (level.optional::<f64>(key)?, level.optional::<f64>(angle_key)?) {
+            (Some(f), _) => Ok(Some(f)),
+            (None, Some(angle)) => focal_from_angle(angle, pixels, &level.name(angle_key)).map(Some),
+            (None, None) => Ok(None),
+        }
+    };
+    let Some(fx) = focal("fl_x", "camera_angle_x", width)? else {
+        bail!("{path}: no intrinsics: give camera_angle_x or fl_x (here or at the top)")
+    };
+    let fy = focal("fl_y", "camera_angle_y", height)?.unwrap_or(fx);
+    let cx = inherited(camera, top, "cx")?.unwrap_or(0.5 * width as f64);
+    let cy = inherited(camera, top, "cy")?.unwrap_or(0.5 * height as f64);
+    for (key, value, focal_length) in [("fl_x", fx, true), ("fl_y", fy, true), ("cx", cx, false), ("cy", cy, false)] {
+        let place = if focal_length { level.name(key) } else { format!("{path}.{key}") };
+        crate::scene::validate::pixels(value, focal_length, &place)?;
+    }
+    Ok(Lens::Pinhole { fx, fy, cx, cy })
 }
 
 /// A camera's own value of `key`, else the one at the top (per-camera
@@ -422,6 +465,9 @@ fn smoke_box(matrix: &[[f64; 4]], scale: &Value) -> Result<(Vec3, Vec3)> {
     // PINF and HyFluid exchange the first and third columns before use.
     let axis = |c: usize| Vec3::new(matrix[0][c], matrix[1][c], matrix[2][c]);
     let (ax, ay, az, origin) = (axis(2) * s[0], axis(1) * s[1], axis(0) * s[2], axis(3));
+    if [ax, ay, az].iter().any(|a| !(a.norm() > 0.0 && a.norm().is_finite())) {
+        bail!("voxel_matrix: a column of its first three is zero: the smoke box would be flat; give --box");
+    }
     let mut lo = Vec3::from_element(f64::INFINITY);
     let mut hi = Vec3::from_element(f64::NEG_INFINITY);
     for corner in 0..8 {
@@ -430,9 +476,11 @@ fn smoke_box(matrix: &[[f64; 4]], scale: &Value) -> Result<(Vec3, Vec3)> {
         lo = lo.inf(&p);
         hi = hi.sup(&p);
     }
-    // The grid is axis-aligned: a box turned against the world axes would not fit it.
+    // The grid is axis-aligned: a box turned against the world axes would
+    // span more than its own volume (its edges' lengths, which a matrix
+    // that also scales makes other than `s`).
     let volume = |v: Vec3| v.x * v.y * v.z;
-    let (spanned, given) = (volume(hi - lo), 1.01 * s[0] * s[1] * s[2]);
+    let (spanned, given) = (volume(hi - lo), 1.01 * ax.norm() * ay.norm() * az.norm());
     if spanned.partial_cmp(&given).is_none_or(|o| o.is_gt()) {
         bail!("voxel_matrix: the smoke box is turned against the world axes, the grid is not: remove it, give --box");
     }
@@ -504,11 +552,28 @@ fn frame_order(path: &Path) -> Vec<(String, u128)> {
 }
 
 /// The size of the first image of `frames`, read from its header.
-fn image_size(frames: &Frames) -> Option<(usize, usize)> {
+fn first_image_size(frames: &Frames) -> Result<(usize, usize)> {
     match frames {
-        Frames::Images(paths) => super::frames::image_size(paths.first()?).ok(),
-        Frames::Video { .. } => None,
+        Frames::Images(paths) if !paths.is_empty() => super::frames::image_size(&paths[0]),
+        _ => bail!("no image to read it from"),
     }
+}
+
+/// `capture`, unless its cameras have different numbers of frames: frame
+/// `n` of one camera must show the instant frame `n` of every other does,
+/// and with a frame missing in one camera's folder every later frame would
+/// be paired with another instant's.
+fn same_frame_counts(capture: Capture) -> Result<Capture> {
+    let counts: Vec<usize> = capture.views.iter().map(|v| v.frames.count()).collect();
+    if let Some(k) = counts.iter().position(|&c| c != counts[0]) {
+        let (a, b) = (&capture.views[0].name, &capture.views[k].name);
+        bail!(
+            "camera {a} has {} frames, camera {b} {}: every camera needs an image of every frame, in the same order",
+            counts[0],
+            counts[k]
+        );
+    }
+    Ok(capture)
 }
 
 /// The views of the cameras `found` (the path of its frames, the camera,
@@ -583,6 +648,12 @@ mod tests {
         let c = std::f64::consts::FRAC_1_SQRT_2;
         let turned = [[c, 0.0, c, 0.0], [0.0, 1.0, 0.0, 0.0], [-c, 0.0, c, 0.0], [0.0, 0.0, 0.0, 1.0]];
         assert!(smoke_box(&turned, &serde_json::json!(0.5)).unwrap_err().0.contains("turned"));
+        // A matrix that scales as well as places: axis-aligned, the box its columns span.
+        let scaled = [[2.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        let (lo, hi) = smoke_box(&scaled, &serde_json::json!(0.5)).unwrap();
+        assert_eq!((lo, hi), (Vec3::zeros(), Vec3::from_element(1.0)));
+        let flat = [[0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        assert!(smoke_box(&flat, &serde_json::json!(0.5)).unwrap_err().0.contains("flat"));
     }
 
     #[test]

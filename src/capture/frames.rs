@@ -5,8 +5,9 @@
 //! them (to 8-bit RGB; a limited-range video is stretched to full range).
 //! No Rust crate decodes these H.264 files exactly: the `openh264` crate
 //! was measured to decode their B-frames wrongly. PNG and JPEG (8 or 16
-//! bit) are read by the `image` crate; `.npy` frames ((H, W) or (H, W, C),
-//! float values as they are, `uint8` / 255) by the project's reader.
+//! bit; JPEG 8 bit) are read by the `image` crate; `.npy` frames ((H, W) or
+//! (H, W, C) with C of 1 to 4 as in a PNG, float values as they are,
+//! `uint8` / 255) by the project's reader.
 
 use super::{Frames, View};
 use crate::bail;
@@ -34,8 +35,12 @@ pub fn have_ffmpeg() -> bool {
 
 /// True for the image files a folder of frames may hold.
 pub fn is_image(path: &Path) -> bool {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
-    path.is_file() && IMAGE_EXTENSIONS.contains(&ext.as_str())
+    path.is_file() && IMAGE_EXTENSIONS.contains(&extension(path).as_str())
+}
+
+/// The extension of `path` in lower case (`""` if none).
+fn extension(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
 }
 
 /// The extensions of the image files a capture's frames may be, lower case.
@@ -43,7 +48,7 @@ pub const IMAGE_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "npy"];
 
 /// Width and height of an image file, from its header.
 pub fn image_size(path: &Path) -> Result<(usize, usize)> {
-    if path.extension().is_some_and(|e| e == "npy") {
+    if extension(path) == "npy" {
         let (height, width, _) = npy_frame_shape(path, &npy::read_declared(path, "frame")?.shape)?;
         return Ok((width, height));
     }
@@ -225,7 +230,7 @@ fn show_frames(frames: &[usize]) -> String {
 /// One image file as grey code value / full scale; one with an alpha
 /// channel composited over black (the fit's smoke is rendered on black).
 fn read_image(path: &Path) -> Result<Image> {
-    if path.extension().is_some_and(|e| e == "npy") {
+    if extension(path) == "npy" {
         return read_npy(path);
     }
     let image = image::open(path).map_err(|e| Error(format!("{}: {e}", show(path))))?;
@@ -245,15 +250,29 @@ fn read_image(path: &Path) -> Result<Image> {
     Ok(Image { width, height, data })
 }
 
-/// A `.npy` frame: (H, W) or (H, W, C), channels averaged.
+/// A `.npy` frame: (H, W) grey, or (H, W, C) with the channels of a PNG:
+/// grey, grey and alpha, RGB, RGBA; the colours averaged, alpha
+/// composited over black. Its values are brightness: none below 0, none
+/// beyond float32's range.
 fn read_npy(path: &Path) -> Result<Image> {
-    let a = npy::read(path, "frame")?;
+    let a = npy::read_f32_range(path, "frame")?;
     let (height, width, channels) = npy_frame_shape(path, &a.shape)?;
     let scale = if a.element == npy::Element::U8 { 255.0 } else { 1.0 };
-    let data: Vec<f64> =
-        a.data.chunks_exact(channels).map(|p| p.iter().sum::<f64>() / (channels as f64 * scale)).collect();
-    if data.iter().any(|v| !v.is_finite()) {
-        bail!("{}: holds NaN or infinity", show(path));
+    let colours = if channels % 2 == 0 { channels - 1 } else { channels };
+    let data: Vec<f64> = a
+        .data
+        .chunks_exact(channels)
+        .map(|p| {
+            let alpha = if channels % 2 == 0 { p[channels - 1] / scale } else { 1.0 };
+            p[..colours].iter().sum::<f64>() / (colours as f64 * scale) * alpha
+        })
+        .collect();
+    if let Some((n, v)) = a.data.iter().enumerate().find(|(_, v)| **v < 0.0) {
+        bail!(
+            "{}: value {v} at pixel {} (row-major) is negative: a frame is brightness, 0 or more; clip it at 0 first",
+            show(path),
+            n / channels
+        );
     }
     Ok(Image { width, height, data })
 }
@@ -262,8 +281,11 @@ fn read_npy(path: &Path) -> Result<Image> {
 fn npy_frame_shape(path: &Path, shape: &[usize]) -> Result<(usize, usize, usize)> {
     match shape[..] {
         [h, w] => Ok((h, w, 1)),
-        [h, w, c] if c > 0 => Ok((h, w, c)),
-        _ => bail!("{}: shape {shape:?} is not (H, W) or (H, W, C)", show(path)),
+        [h, w, c] if (1..=4).contains(&c) => Ok((h, w, c)),
+        _ => bail!(
+            "{}: shape {shape:?} is not (H, W) or (H, W, C) with C of 1 (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA)",
+            show(path)
+        ),
     }
 }
 

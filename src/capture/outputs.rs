@@ -14,6 +14,7 @@ use super::calibration;
 use super::fit::{held_out_black, training_views, FitRow};
 use super::frame::{check, fit_frame, read, FrameFit, Roles};
 use super::reuse::{self, RunSettings};
+use super::rig::Rig;
 use super::settings::FitSettings;
 use super::Capture;
 use crate::error::{Error, Result};
@@ -107,8 +108,7 @@ pub fn fit_and_write(
     earlier: Option<&Path>,
     out: &Path,
 ) -> Result<()> {
-    let mut capture = calibration::open(calibration_path, focal_lengths)?;
-    capture.smoke_box = smoke_box.or(capture.smoke_box);
+    let capture = calibration::open(calibration_path, focal_lengths, smoke_box)?;
     let settings = &settings.for_capture(capture.frame_count());
     let roles = Roles::of(&capture);
     check(&capture, &roles, &[frame], settings).map_err(|e| Error(format!("--capture: {e}")))?;
@@ -130,10 +130,15 @@ pub fn fit_and_write(
         first.name
     );
     let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
+    // So are the rig's calibration frames, where it is fitted here.
+    let rig_photographs = match (&earlier_rig, settings.aligns_once()) {
+        (None, true) => Some(Rig::photographs(&capture, &roles.training, settings)?),
+        _ => None,
+    };
     let run = Run::start(out).map_err(|e| Error(format!("--out: {e}")))?;
     let rig = match earlier_rig {
         Some(rig) => Some(rig),
-        None => reuse::fit_rig(&capture, &roles, settings)?,
+        None => reuse::fit_rig(&capture, &roles, settings, rig_photographs)?,
     };
     if let Some(rig) = &rig {
         record.write(out)?;

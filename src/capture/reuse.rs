@@ -4,6 +4,7 @@
 //! `settings.json`, written beside them before the first fit.
 
 use super::frame::Roles;
+use super::observe::Observed;
 use super::rig::{calibration_frames, Rig};
 use super::settings::FitSettings;
 use super::Capture;
@@ -163,23 +164,29 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
     if path.exists() && base.aligns_once() {
         return read_rig(path, capture, roles, base).map(Some).map_err(|why| start_afresh(path, &why));
     }
-    let rig = fit_rig(capture, roles, base)?;
+    let rig = fit_rig(capture, roles, base, None)?;
     if let Some(rig) = &rig {
         write_rig(path, rig)?;
     }
     Ok(rig)
 }
 
-/// The rig `settings` ask for, as [`Rig::if_shared`] gives it, saying on
-/// stderr what it does while it runs (a minute or more, with nothing else
-/// to show).
-pub fn fit_rig(capture: &Capture, roles: &Roles, settings: &FitSettings) -> Result<Option<Rig>> {
+/// The rig `settings` ask for, as [`Rig::if_shared`] gives it, on its
+/// `photographs` where they were read already ([`Rig::photographs`]),
+/// saying on stderr what it does while it runs (a minute or more, with
+/// nothing else to show).
+pub fn fit_rig(
+    capture: &Capture,
+    roles: &Roles,
+    settings: &FitSettings,
+    photographs: Option<Observed>,
+) -> Result<Option<Rig>> {
     if !settings.aligns_once() {
         return Ok(None);
     }
     let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
     eprintln!("rig: aligning the training cameras once for the capture, on frames {frames:?} ...");
-    Rig::fit(capture, &roles.training, settings, &mut |frame, fit| {
+    Rig::fit(capture, &roles.training, settings, photographs, &mut |frame, fit| {
         eprintln!("rig: frame {frame} fitted under {} in {:.0} s", fit.settings.model.name(), fit.seconds)
     })
     .map(Some)

@@ -19,7 +19,7 @@
 
 use super::align::{geometric_mean, take_out_shared, Corrections};
 use super::fit::{fit, fit_aligning_from, Fit};
-use super::observe::observe;
+use super::observe::{observe, Observed};
 use super::settings::{FitSettings, ImageModel};
 use super::Capture;
 use crate::error::Result;
@@ -96,25 +96,38 @@ impl Rig {
         progress: &mut dyn FnMut(usize, &Fit),
     ) -> Result<Option<Rig>> {
         if settings.aligns_once() {
-            Rig::fit(capture, training, settings, progress).map(Some)
+            Rig::fit(capture, training, settings, None, progress).map(Some)
         } else {
             Ok(None)
         }
     }
 
+    /// The photographs a rig of `training` cameras of `capture` is fitted
+    /// on: its [`calibration_frames`] at the rig's working resolution.
+    pub fn photographs(capture: &Capture, training: &[usize], settings: &FitSettings) -> Result<Observed> {
+        let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
+        observe(capture, training, &frames, settings.rig_factor.unwrap_or(settings.factor))
+    }
+
     /// Fits the rig of `training` cameras of `capture` on its
-    /// [`calibration_frames`], each with `settings` (their per-frame
-    /// alignment on) under their `rig_model`, or under multiple scattering
-    /// where their `rig_lit_share` rule says so. `progress` hears each fit.
+    /// [`calibration_frames`] (`photographs` if read already, else read
+    /// here), each with `settings` (their per-frame alignment on) under
+    /// their `rig_model`, or under multiple scattering where their
+    /// `rig_lit_share` rule says so. `progress` hears each fit.
     pub fn fit(
         capture: &Capture,
         training: &[usize],
         settings: &FitSettings,
+        photographs: Option<Observed>,
         progress: &mut dyn FnMut(usize, &Fit),
     ) -> Result<Rig> {
         let start = std::time::Instant::now();
         let smoke_box = capture.grid_box()?;
         let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
+        let observed = match photographs {
+            Some(read) => read,
+            None => Rig::photographs(capture, training, settings)?,
+        };
         let settings = FitSettings {
             align: true,
             shared_alignment: false,
@@ -125,7 +138,6 @@ impl Rig {
             // frames' own fits start from: every setting of them sees the same cameras.
             ..settings.per_voxel()
         };
-        let observed = observe(capture, training, &frames, settings.factor)?;
         let mut fit_under = |model: ImageModel, i: usize, from: Option<&Corrections>| {
             let settings = FitSettings { model, ..settings.clone() };
             let (cameras, images) = (&observed.cameras, &observed.images[i]);
@@ -175,12 +187,19 @@ fn corrections_of(cameras: &[RigCamera]) -> Corrections {
     }
 }
 
-/// Per training camera, the median of `fits`' corrections, [`centred`].
+/// Per training camera, the median of `fits`' corrections, [`centred`]:
+/// of an even number of frames, the mean of the middle two, so that each
+/// correction lies between the frames' and none leans to the larger.
 fn medians(capture: &Capture, training: &[usize], fits: &[Fit]) -> Vec<RigCamera> {
     let median = |values: Vec<f64>| {
         let mut v = values;
         v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+        let half = v.len() / 2;
+        if v.len() % 2 == 1 {
+            v[half]
+        } else {
+            0.5 * (v[half - 1] + v[half])
+        }
     };
     let offsets: Vec<Vec<[f64; 2]>> = fits.iter().map(Fit::offsets_px).collect();
     let cameras: Vec<RigCamera> = training

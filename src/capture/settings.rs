@@ -455,6 +455,16 @@ impl FitSettings {
         if self.updates.is_empty() || self.resolution >> (self.updates.len() - 1) < 2 {
             return bad("resolution must give at least 2 voxels along the longest edge at the coarsest level");
         }
+        // The gains, the cameras' alignment and the lights' places are
+        // fitted from the second stage on, once a density explains the
+        // photographs; with one level and no decoder or prior there is none.
+        let one_stage = self.updates.len() == 1 && self.decoder == 0 && self.prior == 0;
+        if one_stage && (self.gains || self.align || self.lights > 0) {
+            return bad(
+                "updates: one level leaves no stage to fit the gains, the cameras' alignment and the lights' places \
+                 on (each starts at the second): give at least two levels, or set gains and align false and lights 0",
+            );
+        }
         if !(self.horizontal_smoothness.is_finite() && self.horizontal_smoothness >= 0.0) {
             return bad("horizontal_smoothness must be finite and >= 0");
         }
@@ -617,6 +627,15 @@ mod tests {
         assert_eq!((0..3).map(|l| on.image_scale(l, &small)).collect::<Vec<_>>(), [2, 2, 1]);
         let two_levels = FitSettings { updates: vec![40, 80], ..on };
         assert_eq!((0..2).map(|l| two_levels.image_scale(l, &working)).collect::<Vec<_>>(), [2, 1]);
+    }
+
+    #[test]
+    fn one_level_is_refused_where_it_leaves_no_stage_for_the_gains_alignment_or_lights() {
+        let one = FitSettings { updates: vec![80], ..FitSettings::default() };
+        let err = one.validate().unwrap_err().to_string();
+        assert!(err.contains("one level leaves no stage"), "{err}");
+        FitSettings { gains: false, align: false, ..one.clone() }.validate().unwrap();
+        FitSettings { decoder: 20, ..one }.validate().unwrap();
     }
 
     #[test]

@@ -213,6 +213,17 @@ pub fn check_photons(photons: u64, max_order: u32, field: &str) -> Result<()> {
     Ok(())
 }
 
+/// `Err` naming `field` unless `v` is a number of pixels a pinhole lens
+/// takes: finite and at most 1e9 in size, and positive for a focal length
+/// (`positive`; a principal point may lie outside the image).
+pub(crate) fn pixels(v: f64, positive: bool, field: &str) -> Result<()> {
+    if !v.is_finite() || (positive && v <= 0.0) || v.abs() > 1e9 {
+        let want = if positive { "a positive number of pixels" } else { "a finite number of pixels" };
+        bail!("{field}: {v} must be {want} (at most 1e9)");
+    }
+    Ok(())
+}
+
 fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
     let position = finite3(c.position.into(), &format!("cameras[{n}].position"))?;
     near_the_box(position, density, &format!("cameras[{n}].position"))?;
@@ -229,10 +240,7 @@ fn validate_camera(c: &Camera, density: &Grid<f64>, n: usize) -> Result<()> {
         Lens::FovY(deg) if !(deg > 0.0 && deg < 180.0) => bail!("cameras[{n}].fov_y_deg: {deg} must be in (0, 180)"),
         Lens::Pinhole { fx, fy, cx, cy } => {
             for (name, v, positive) in [("fx", fx, true), ("fy", fy, true), ("cx", cx, false), ("cy", cy, false)] {
-                if !v.is_finite() || (positive && v <= 0.0) || v.abs() > 1e9 {
-                    let want = if positive { "a positive number of pixels" } else { "a finite number of pixels" };
-                    bail!("cameras[{n}].{name}: {v} must be {want} (at most 1e9)");
-                }
+                pixels(v, positive, &format!("cameras[{n}].{name}"))?;
             }
         }
         Lens::FovY(_) => {}

@@ -53,7 +53,10 @@ pub struct FitRow {
     pub level: usize,
     /// Update within the stage.
     pub update: usize,
-    /// The images' mean squared error (code value / full scale, squared).
+    /// The images' mean squared error against the photographs over their
+    /// cameras' responses (linear: code value / full scale to the power
+    /// gamma, less the black level, over the gain; where a photograph is
+    /// 0, a render below the threshold counts as no error).
     pub image_mse: f64,
     /// The smoothness term.
     pub smoothness: f64,
