@@ -185,7 +185,15 @@ fn decode_selected(path: &Path, select: &str, frames: &[usize]) -> Result<Vec<Im
     let status = child.wait()?;
     let stderr = messages.and_then(|m| m.join().ok()).unwrap_or_default();
     if !status.success() || images.len() != frames.len() || more {
-        let what = stderr.lines().next().unwrap_or("its output is not the frames asked for").to_string();
+        // Fewer pictures and no complaint: the video ended before them.
+        let short = (status.success() && images.len() < frames.len()).then(|| {
+            format!(
+                "the video ends before frame {} (it has fewer frames than its calibration's frame_num says)",
+                frames[images.len()]
+            )
+        });
+        let what = stderr.lines().next().map(str::to_string).or(short);
+        let what = what.unwrap_or_else(|| "its output is not the frames asked for".to_string());
         bail!(
             "{}: ffmpeg could not decode frames {}: {}",
             show(path),
