@@ -265,6 +265,13 @@ fn read_image(path: &Path) -> Result<Image> {
 fn read_npy(path: &Path) -> Result<Image> {
     let a = npy::read_f32_range(path, "frame")?;
     let (height, width, channels) = npy_frame_shape(path, &a.shape)?;
+    if let Some((n, v)) = a.data.iter().enumerate().find(|(_, v)| **v < 0.0) {
+        bail!(
+            "{}: value {v} at pixel {} (row-major) is negative: a frame is brightness, 0 or more; clip it at 0 first",
+            show(path),
+            n / channels
+        );
+    }
     let scale = if a.element == npy::Element::U8 { 255.0 } else { 1.0 };
     let colours = if channels % 2 == 0 { channels - 1 } else { channels };
     let data: Vec<f64> = a
@@ -275,13 +282,6 @@ fn read_npy(path: &Path) -> Result<Image> {
             p[..colours].iter().sum::<f64>() / (colours as f64 * scale) * alpha
         })
         .collect();
-    if let Some((n, v)) = a.data.iter().enumerate().find(|(_, v)| **v < 0.0) {
-        bail!(
-            "{}: value {v} at pixel {} (row-major) is negative: a frame is brightness, 0 or more; clip it at 0 first",
-            show(path),
-            n / channels
-        );
-    }
     Ok(Image { width, height, data })
 }
 

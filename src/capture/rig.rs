@@ -106,7 +106,7 @@ impl Rig {
     /// on: its [`calibration_frames`] at the rig's working resolution.
     pub fn photographs(capture: &Capture, training: &[usize], settings: &FitSettings) -> Result<Observed> {
         let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
-        observe(capture, training, &frames, settings.rig_factor.unwrap_or(settings.factor))
+        observe(capture, training, &frames, rig_settings(settings).factor)
     }
 
     /// Fits the rig of `training` cameras of `capture` on its
@@ -128,16 +128,7 @@ impl Rig {
             Some(read) => read,
             None => Rig::photographs(capture, training, settings)?,
         };
-        let settings = FitSettings {
-            align: true,
-            shared_alignment: false,
-            // The rig measures the gains that its frames' fits may hold.
-            rig_gains: false,
-            factor: settings.rig_factor.unwrap_or(settings.factor),
-            // The cameras' alignment, coarse to fine per voxel, whatever the
-            // frames' own fits start from: every setting of them sees the same cameras.
-            ..settings.per_voxel()
-        };
+        let settings = rig_settings(settings);
         let mut fit_under = |model: ImageModel, i: usize, from: Option<&Corrections>| {
             let settings = FitSettings { model, ..settings.clone() };
             let (cameras, images) = (&observed.cameras, &observed.images[i]);
@@ -174,6 +165,22 @@ impl Rig {
     /// The corrections a fit starts from, in the training cameras' order.
     pub fn corrections(&self) -> Corrections {
         corrections_of(&self.cameras)
+    }
+}
+
+/// The settings a rig's calibration frames are read and fitted with:
+/// `settings` with each frame's cameras aligned, at the rig's working
+/// resolution.
+fn rig_settings(settings: &FitSettings) -> FitSettings {
+    FitSettings {
+        align: true,
+        shared_alignment: false,
+        // The rig measures the gains that its frames' fits may hold.
+        rig_gains: false,
+        factor: settings.rig_factor.unwrap_or(settings.factor),
+        // The cameras' alignment, coarse to fine per voxel, whatever the
+        // frames' own fits start from: every setting of them sees the same cameras.
+        ..settings.per_voxel()
     }
 }
 
