@@ -151,7 +151,7 @@ fn run(args: Args) -> Result<()> {
     let fixed = learn.rig.as_ref().map(Rig::corrections);
     let smoke_box = learn.capture.grid_box()?;
     let mut normal = Normal::new(args.radius);
-    for images in read(&learn.capture, &learn.roles, &args.learn_frames, settings.factor)? {
+    for images in read(&learn.capture, &learn.roles, &args.learn_frames, &settings)? {
         let training = &images.training.images[0];
         let fitted = fit(&images.training.cameras, training, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
         let truth = truth_on(&fitted.scene.density, learn_res, learn_seed, images.frame, &settings);
@@ -174,7 +174,7 @@ fn run(args: Args) -> Result<()> {
     let smoke_box = scored.capture.grid_box()?;
     let held_out = scored.roles.held_out[0];
     let mut rows = Vec::new();
-    for images in read(&scored.capture, &scored.roles, &args.frames, settings.factor)? {
+    for images in read(&scored.capture, &scored.roles, &args.frames, &settings)? {
         let (cameras, training) = (&images.training.cameras, &images.training.images[0]);
         let fitted = fit(cameras, training, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
         eprintln!("frame {}: fitted in {:.0} s", images.frame, fitted.seconds);

@@ -127,7 +127,7 @@ fn run(args: Args) -> Result<()> {
     dualphoton::capture::frame::check(&capture, &roles, &args.frames, &defaults)?;
     let smoke_box = capture.grid_box()?;
     let run = Run::start(&args.out)?;
-    let frames = read(&capture, &roles, &args.frames, defaults.factor)?;
+    let frames = read(&capture, &roles, &args.frames, &defaults)?;
     let mut rows = Vec::new();
     for images in &frames {
         let truth =

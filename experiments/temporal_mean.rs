@@ -117,7 +117,7 @@ fn run(args: Args) -> Result<()> {
     let mut rows = Vec::new();
     for &centre in &args.frames {
         let frames: Vec<usize> = (centre - args.reach..=centre + args.reach).collect();
-        let images = read(&capture, &roles, &frames, settings.factor)?;
+        let images = read(&capture, &roles, &frames, &settings)?;
         let own = &images[args.reach];
         for &model in &args.models {
             let settings = FitSettings { model, ..settings.clone() };

@@ -590,7 +590,7 @@ fn made_capture_writes_a_capture_that_reads_back() {
         }
         // Smoke inside the box on black: nothing a background would leave.
         let (lo, hi) = made.grid_box().unwrap();
-        let seen = observe::observe(&made, &[0, 1, 2], &[0, 1, 2], 1).unwrap();
+        let seen = observe::observe(&made, &[0, 1, 2], &[0, 1, 2], 1, 1.0).unwrap();
         assert_eq!(observe::light_outside_box(&seen, &[0, 1, 2], &lo, &hi).unwrap(), None, "{share}");
     }
     assert!(middles.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {middles:?}");

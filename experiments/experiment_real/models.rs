@@ -173,9 +173,9 @@ pub fn run(
     // A few frames at a time: a frame's photographs are read at full
     // resolution before they are downsampled.
     for frames_now in todo.chunks(FRAMES_AT_ONCE) {
-        for images in frame::read(capture, roles, frames_now, base.factor)? {
+        for images in frame::read(capture, roles, frames_now, base)? {
             let frame = images.frame;
-            let noise = temporal_noise(capture, &roles.training, frame, base.factor)?;
+            let noise = temporal_noise(capture, &roles.training, frame, base.factor, base.gamma)?;
             let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
             for model in pending {
                 let settings = FitSettings { model, ..base.clone() };

@@ -195,15 +195,18 @@ fn box_unseen(camera: &crate::scene::Camera, lo: &Vec3, hi: &Vec3) -> Option<&'s
     (!points.iter().any(|p| camera.pixel_of(p).is_some())).then_some("the smoke box is not in its image")
 }
 
-/// The images of `wanted` frames (read in one pass per camera).
-pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], factor: usize) -> Result<Vec<FrameImages>> {
+/// The images of `wanted` frames (read in one pass per camera), the
+/// training cameras' at the working resolution of `settings` (area-averaged
+/// under its response), the held-out cameras' at the capture's.
+pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitSettings) -> Result<Vec<FrameImages>> {
+    let factor = settings.factor;
     let mut held: Vec<Vec<Image>> = vec![Vec::new(); wanted.len()];
     for &v in &roles.held_out {
         for (per_frame, image) in held.iter_mut().zip(frames::read(&capture.views[v], wanted)?) {
             per_frame.push(image);
         }
     }
-    let training = observe(capture, &roles.training, wanted, factor)?;
+    let training = observe(capture, &roles.training, wanted, factor, settings.gamma)?;
     // The held-out photographs are checked as the training ones are: a
     // background left in would otherwise show only as a low score.
     let held_seen = Observed {

@@ -38,28 +38,40 @@ pub struct Observed {
 }
 
 /// Frames `wanted` of cameras `views` of `capture`, downsampled by
-/// `factor` (area averaging; a partial block at an edge is dropped), and
-/// checked for light outside the smoke box.
-pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize) -> Result<Observed> {
-    let observed = downsampled(capture, views, wanted, factor)?;
+/// `factor` ([`area_average`] under the response's `gamma`), and checked
+/// for light outside the smoke box.
+pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize, gamma: f64) -> Result<Observed> {
+    let observed = downsampled(capture, views, wanted, factor, gamma)?;
     check_light_outside_box(capture, &observed, wanted)?;
     Ok(observed)
 }
 
 /// [`observe`] without the check: for frames read again beside one that
 /// was checked, which would repeat its warning.
-fn downsampled(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize) -> Result<Observed> {
+fn downsampled(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize, gamma: f64) -> Result<Observed> {
     let mut images = vec![Vec::with_capacity(views.len()); wanted.len()];
     let mut cameras = Vec::with_capacity(views.len());
     for &v in views {
         let view = &capture.views[v];
         for (per_frame, full) in images.iter_mut().zip(frames::read(view, wanted)?) {
-            per_frame.push(full.downsample(factor));
+            per_frame.push(area_average(&full, factor, gamma));
         }
         cameras.push(view.camera.downsample(factor));
     }
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
     Ok(Observed { cameras, images, names })
+}
+
+/// `photograph` (codes) downsampled by `factor` as a camera of larger
+/// pixels would have seen it: a pixel's radiance is the mean of its area's,
+/// and a code is radiance to the power 1/`gamma` (the response's curve), so
+/// the codes are raised to `gamma`, averaged (a partial block at an edge
+/// dropped) and returned as codes. Gamma 1 is the plain mean of the codes.
+pub fn area_average(photograph: &Image, factor: usize, gamma: f64) -> Image {
+    if gamma == 1.0 {
+        return photograph.downsample(factor);
+    }
+    photograph.map(|v| v.powf(gamma)).downsample(factor).map(|v| v.powf(1.0 / gamma))
 }
 
 /// [`light_outside_box`] on `observed` (frames `wanted` of `capture`), its
@@ -111,18 +123,24 @@ pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &
 }
 
 /// The photographs' noise around `frame` at 1/`factor` of the full
-/// resolution: the root mean square over every pixel of `views` (code
+/// resolution ([`area_average`] under `gamma`): the root mean square over every pixel of `views` (code
 /// value / 255) of [`noise_of_three`] on three consecutive frames (the
 /// frame and its neighbours, shifted inwards at the clip's ends). `None`
 /// for a capture of fewer than three frames. Not checked for light outside
 /// the box: `frame` is checked where it is fitted.
-pub fn temporal_noise(capture: &Capture, views: &[usize], frame: usize, factor: usize) -> Result<Option<f64>> {
+pub fn temporal_noise(
+    capture: &Capture,
+    views: &[usize],
+    frame: usize,
+    factor: usize,
+    gamma: f64,
+) -> Result<Option<f64>> {
     let count = capture.frame_count();
     if count < 3 {
         return Ok(None);
     }
     let first = frame.saturating_sub(1).min(count - 3);
-    let seen = downsampled(capture, views, &[first, first + 1, first + 2], factor)?;
+    let seen = downsampled(capture, views, &[first, first + 1, first + 2], factor, gamma)?;
     Ok(Some(noise_of_three([&seen.images[0], &seen.images[1], &seen.images[2]])))
 }
 
@@ -195,6 +213,18 @@ fn dilate(mask: &[bool], width: usize, height: usize, radius: f64) -> Vec<bool> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A block of half black, half full code is half the radiance: under
+    /// gamma 2 its code is sqrt(1/2), not the codes' mean 1/2.
+    #[test]
+    fn an_area_average_is_the_mean_of_the_radiance_under_the_response() {
+        let photograph = Image { width: 4, height: 2, data: vec![0.0, 1.0, 0.2, 0.2, 1.0, 0.0, 0.2, 0.2] };
+        let seen = area_average(&photograph, 2, 2.0);
+        assert_eq!((seen.width, seen.height), (2, 1));
+        assert!((seen.data[0] - 0.5f64.sqrt()).abs() < 1e-12, "{:?}", seen.data);
+        assert!((seen.data[1] - 0.2).abs() < 1e-12, "{:?}", seen.data);
+        assert_eq!(area_average(&photograph, 2, 1.0).data, vec![0.5, 0.2]);
+    }
 
     #[test]
     fn the_noise_of_three_frames_is_the_noise_added_to_a_linear_change() {

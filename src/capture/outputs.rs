@@ -129,7 +129,7 @@ pub fn fit_and_write(
         working.height,
         first.name
     );
-    let images = read(&capture, &roles, &[frame], settings.factor)?.remove(0);
+    let images = read(&capture, &roles, &[frame], settings)?.remove(0);
     // So are the rig's calibration frames, where it is fitted here.
     let rig_photographs = match (&earlier_rig, settings.aligns_once()) {
         (None, true) => Some(Rig::photographs(&capture, &roles.training, settings)?),

@@ -106,7 +106,8 @@ impl Rig {
     /// on: its [`calibration_frames`] at the rig's working resolution.
     pub fn photographs(capture: &Capture, training: &[usize], settings: &FitSettings) -> Result<Observed> {
         let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
-        observe(capture, training, &frames, rig_settings(settings).factor)
+        let rig = rig_settings(settings);
+        observe(capture, training, &frames, rig.factor, rig.gamma)
     }
 
     /// Fits the rig of `training` cameras of `capture` on its
