@@ -246,10 +246,11 @@ pub struct FitSettings {
     /// The cameras' response curve, shared by all: a photograph's code
     /// value / full scale is the radiance (times the camera's gain) to the
     /// power 1/`gamma`. The fit works on the photographs to the power
-    /// `gamma`, where the image is linear in the lights; rendered views go
-    /// back through the curve. 1: the codes are proportional to radiance,
-    /// which scored best on the settings study's frames (0.8, 1.5 and 2.2
-    /// lost 0.2-2.9 dB on the scoring camera, every model).
+    /// `gamma`, where the image is linear in the lights (each averaged over
+    /// a working pixel after that power); rendered views go back through the
+    /// curve. 1: the codes are proportional to radiance, which scored best
+    /// on the settings study's frames (0.8, 1.5 and 2.2 lost 0.27-3.4 dB on
+    /// the scoring camera under multiple scattering, every model lost).
     pub gamma: f64,
     /// Fit each level coarser than the finest on images downsampled twice
     /// as far as the next level's (area averaging; the finest level's at
