@@ -5,7 +5,7 @@
 //! `experiment_real` both go through here.
 
 use super::fit::{fit, render_view, Fit, FitRow};
-use super::observe::{check_light_outside_box, observe, Observed};
+use super::observe::{area_average, check_light_outside_box, observe, Observed};
 use super::protocol::{Aligned, Oracle, Protocol, Score};
 use super::rig::Rig;
 use super::settings::FitSettings;
@@ -211,7 +211,7 @@ pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitSe
     // background left in would otherwise show only as a low score.
     let held_seen = Observed {
         cameras: roles.held_out.iter().map(|&v| capture.views[v].camera.downsample(factor)).collect(),
-        images: held.iter().map(|per| per.iter().map(|i| i.downsample(factor)).collect()).collect(),
+        images: held.iter().map(|per| per.iter().map(|i| area_average(i, factor, settings.gamma)).collect()).collect(),
         names: roles.held_out.iter().map(|&v| capture.views[v].name.clone()).collect(),
     };
     check_light_outside_box(capture, &held_seen, wanted)?;
