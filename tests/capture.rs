@@ -397,14 +397,17 @@ fn calibrations_and_frames_of_other_tools_are_read_as_they_mean() {
         calibration::load(&dir.join("transforms.json"))
     };
     let entry = |cam: &str, x: f64| json!({"file_path": cam, "transform_matrix": looking_at_origin(x, 2.0)});
-    // Sizes as floats; a camera's own angle and principal point over the top's focal length.
+    // Sizes as floats; a camera's own angles and principal point over the
+    // top's focal length and principal point; the vertical angle over the height.
     let mut b = entry("b", 1.0);
     b["camera_angle_x"] = json!(0.5);
+    b["camera_angle_y"] = json!(0.4);
     b["cx"] = json!(2.0);
-    let capture = load(json!({"w": 6.0, "h": 4.0, "fl_x": 9.0, "frames": [entry("a", 0.0), b]})).unwrap();
-    assert_eq!(capture.views[0].camera.intrinsics(), [9.0, 9.0, 3.0, 2.0]);
-    let f = 3.0 / 0.25f64.tan();
-    assert_eq!(capture.views[1].camera.intrinsics(), [f, f, 2.0, 2.0]);
+    let top = json!({"w": 6.0, "h": 4.0, "fl_x": 9.0, "cx": 2.5, "cy": 1.5, "frames": [entry("a", 0.0), b]});
+    let capture = load(top).unwrap();
+    assert_eq!(capture.views[0].camera.intrinsics(), [9.0, 9.0, 2.5, 1.5]);
+    let (fx, fy) = (3.0 / 0.25f64.tan(), 2.0 / 0.2f64.tan());
+    assert_eq!(capture.views[1].camera.intrinsics(), [fx, fy, 2.0, 1.5]);
     // A focal length of 0, a size that is not whole.
     for (calib, says) in [
         (json!({"fl_x": 0.0, "frames": [entry("a", 0.0)]}), "fl_x: 0 must be a positive number of pixels"),

@@ -199,16 +199,6 @@ fn corrections_of(cameras: &[RigCamera]) -> Corrections {
 /// of an even number of frames, the mean of the middle two, so that each
 /// correction lies between the frames' and none leans to the larger.
 fn medians(capture: &Capture, training: &[usize], fits: &[Fit]) -> Vec<RigCamera> {
-    let median = |values: Vec<f64>| {
-        let mut v = values;
-        v.sort_by(f64::total_cmp);
-        let half = v.len() / 2;
-        if v.len() % 2 == 1 {
-            v[half]
-        } else {
-            0.5 * (v[half - 1] + v[half])
-        }
-    };
     let offsets: Vec<Vec<[f64; 2]>> = fits.iter().map(Fit::offsets_px).collect();
     let cameras: Vec<RigCamera> = training
         .iter()
@@ -222,6 +212,17 @@ fn medians(capture: &Capture, training: &[usize], fits: &[Fit]) -> Vec<RigCamera
         })
         .collect();
     centred(cameras)
+}
+
+/// The median of `values`: of an even number, the mean of the middle two.
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let half = values.len() / 2;
+    if values.len() % 2 == 1 {
+        values[half]
+    } else {
+        0.5 * (values[half - 1] + values[half])
+    }
 }
 
 /// `cameras` with their offsets' and turns' means taken out and their
@@ -274,6 +275,13 @@ mod tests {
         let json = r#"{"frames": [19], "cameras": [{"name": "a", "offset_px": [1.0, 2.0], "zoom": 1.01}]}"#;
         let rig: Rig = serde_json::from_str(json).unwrap();
         assert_eq!(rig.cameras[0].gain, 1.0);
+    }
+
+    #[test]
+    fn a_median_of_an_even_count_is_the_mean_of_the_middle_two() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![10.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(vec![-1.0]), -1.0);
     }
 
     #[test]

@@ -63,6 +63,24 @@ pub fn respond(image: &Image, gain: f64, black: f64, settings: &FitSettings) -> 
 mod tests {
     use super::*;
 
+    /// A dark pixel is no error where the render through the camera's gain
+    /// and black level stays below the threshold: a black level lifting the
+    /// render over it makes the photograph's 0 an error again, one
+    /// lowering it hides a render above it.
+    #[test]
+    fn the_threshold_censors_through_the_black_level() {
+        let target = [Image { width: 2, height: 1, data: vec![0.0, 0.5] }];
+        let censor = |render: f64, black: f64| {
+            let rendered = [Image { width: 2, height: 1, data: vec![render, 0.1] }];
+            censored(&target, Some(&rendered), 0.03, &[1.0], &[black])[0].data.clone()
+        };
+        assert_eq!(censor(0.015, 0.0), vec![0.015, 0.5]);
+        assert_eq!(censor(0.015, 0.02), vec![0.0, 0.5]);
+        assert_eq!(censor(0.04, 0.0), vec![0.0, 0.5]);
+        assert_eq!(censor(0.04, -0.02), vec![0.04, 0.5]);
+        assert_eq!(censored(&target, None, 0.03, &[1.0], &[0.0])[0].data, target[0].data);
+    }
+
     /// A photograph through the inverse response, over a camera's gain, comes
     /// back through `respond` as it was; below the threshold, as 0.
     #[test]

@@ -341,6 +341,15 @@ fn the_lighting_of_a_known_density_comes_back() {
     assert!(done.gains[1] > 1.3 * done.gains[0].max(done.gains[2]), "gains {:?}", done.gains);
     let brighter_error = training_rmse(&done, &brighter);
     assert!(brighter_error < 2.0 * error, "RMSE {brighter_error}, against {error} at gains 1");
+    // The held-out camera's gain is the training gains' geometric mean,
+    // which the lights absorb: 1, its render the same whatever the gains.
+    let product: f64 = done.gains.iter().product();
+    assert!((product - 1.0).abs() < 1e-12, "gains {:?}", done.gains);
+    let unit_gains = Fit { gains: vec![1.0; 3], ..done.clone() };
+    assert_eq!(render_view(&done, &cameras[0]).data, render_view(&unit_gains, &cameras[0]).data);
+    // Its black level is the training cameras' mean.
+    let blacks = Fit { black_levels: vec![0.02, 0.03, -0.02], ..done };
+    assert!((held_out_black(&blacks) - 0.01).abs() < 1e-15);
     // A rig's gains are held where the settings say so, fitted where not.
     let rig = Corrections {
         offsets_px: vec![[0.0; 2]; 3],
