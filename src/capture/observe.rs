@@ -139,9 +139,15 @@ pub fn temporal_noise(
     if count < 3 {
         return Ok(None);
     }
-    let first = frame.saturating_sub(1).min(count - 3);
+    let first = first_of_three(frame, count);
     let seen = downsampled(capture, views, &[first, first + 1, first + 2], factor, gamma)?;
     Ok(Some(noise_of_three([&seen.images[0], &seen.images[1], &seen.images[2]])))
+}
+
+/// The first of three consecutive frames of a clip of `count` (at least
+/// 3) around `frame`: its neighbours', shifted inwards at the clip's ends.
+fn first_of_three(frame: usize, count: usize) -> usize {
+    frame.saturating_sub(1).min(count - 3)
 }
 
 /// Noise from three consecutive frames of the same cameras: where the
@@ -224,6 +230,12 @@ mod tests {
         assert!((seen.data[0] - 0.5f64.sqrt()).abs() < 1e-12, "{:?}", seen.data);
         assert!((seen.data[1] - 0.2).abs() < 1e-12, "{:?}", seen.data);
         assert_eq!(area_average(&photograph, 2, 1.0).data, vec![0.5, 0.2]);
+    }
+
+    #[test]
+    fn the_noise_frames_are_a_frame_and_its_neighbours_inside_the_clip() {
+        assert_eq!([0, 1, 5, 118, 119].map(|f| first_of_three(f, 120)), [0, 0, 4, 117, 117]);
+        assert_eq!(first_of_three(2, 3), 0);
     }
 
     #[test]
