@@ -123,9 +123,10 @@ pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &
 }
 
 /// The photographs' noise around `frame` at 1/`factor` of the full
-/// resolution ([`area_average`] under `gamma`): the root mean square over every pixel of `views` (code
-/// value / 255) of [`noise_of_three`] on three consecutive frames (the
-/// frame and its neighbours, shifted inwards at the clip's ends). `None`
+/// resolution ([`area_average`] under `gamma`): the root mean square over
+/// every pixel of `views` (code value / 255) of [`noise_of_three`] on
+/// three consecutive frames (the frame and its neighbours, shifted
+/// inwards at the clip's ends). `None`
 /// for a capture of fewer than three frames. Not checked for light outside
 /// the box: `frame` is checked where it is fitted.
 pub fn temporal_noise(
