@@ -180,7 +180,8 @@ pub(super) fn fit_gains(gains: &mut [f64], weights: &[f64], basis: &[Vec<Image>]
 /// black` of its photograph `p` (linear, not over its gain) on its render
 /// `r` (`basis` weighted by `weights`) over the pixels the capture's
 /// threshold does not hide (those where `p` > 0 or the line reaches
-/// `threshold`), the black level within `threshold` either way (beyond it
+/// `threshold`, the hidden ones read as 0, or with `to_threshold` as the
+/// threshold), the black level within `threshold` either way (beyond it
 /// the processing would have shown or hidden the whole background); the
 /// gains then divided by their geometric mean, which the lights absorb.
 pub(super) fn fit_gains_and_blacks(
@@ -190,7 +191,9 @@ pub(super) fn fit_gains_and_blacks(
     basis: &[Vec<Image>],
     photographs: &[Image],
     threshold: f64,
+    to_threshold: bool,
 ) {
+    let hidden = if to_threshold { threshold } else { 0.0 };
     let fitted: Vec<f64> = (0..gains.len())
         .map(|c| {
             let render = weighted(basis, weights, c);
@@ -198,7 +201,7 @@ pub(super) fn fit_gains_and_blacks(
                 .iter()
                 .zip(&photographs[c].data)
                 .filter(|&(&r, &p)| p > 0.0 || gains[c] * r + blacks[c] >= threshold)
-                .map(|(&r, &p)| (r, p))
+                .map(|(&r, &p)| (r, if p > 0.0 { p } else { hidden }))
                 .collect();
             let n = seen.len() as f64;
             let (sr, sp) = seen.iter().fold((0.0, 0.0), |(a, b), (r, p)| (a + r, b + p));
@@ -499,14 +502,38 @@ mod tests {
         let photographs = vec![process(&render[0], 1.2, 0.01), process(&render[1], 0.8, -0.01)];
         let (mut gains, mut blacks) = (vec![1.0; 2], vec![0.0; 2]);
         for _ in 0..3 {
-            fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03);
+            fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03, false);
         }
         assert!((gains[0] / gains[1] - 1.5).abs() < 1e-9, "{gains:?}");
         assert!((blacks[0] - 0.01).abs() < 1e-9 && (blacks[1] + 0.01).abs() < 1e-9, "{blacks:?}");
         let photographs = vec![process(&render[0], 1.0, 0.1), process(&render[1], 1.0, 0.1)];
         let (mut gains, mut blacks) = (vec![1.0; 2], vec![0.0; 2]);
-        fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03);
+        fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03, false);
         assert_eq!(blacks, vec![0.03; 2]);
+    }
+
+    /// A pixel the photograph hides (0) where the line reaches the
+    /// threshold enters the black level's line as 0, or with `to_threshold`
+    /// as the threshold: the least-squares line through those points.
+    #[test]
+    fn a_hidden_pixel_enters_the_black_level_as_0_or_the_threshold() {
+        let im = |v: Vec<f64>| Image { width: v.len(), height: 1, data: v };
+        let render = [0.05, 0.1, 0.2, 0.4];
+        let basis = vec![vec![im(render.to_vec())]];
+        let photographs = vec![im(vec![0.0, 0.1, 0.21, 0.4])];
+        let line = |hidden: f64| {
+            let p = [hidden, 0.1, 0.21, 0.4];
+            let (sr, sp): (f64, f64) = (render.iter().sum(), p.iter().sum());
+            let srr: f64 = render.iter().map(|r| r * r).sum();
+            let srp: f64 = render.iter().zip(&p).map(|(r, p)| r * p).sum();
+            (srr * sp - sr * srp) / (4.0 * srr - sr * sr)
+        };
+        for (to_threshold, hidden) in [(false, 0.0), (true, 0.03)] {
+            let (mut gains, mut blacks) = (vec![1.0], vec![0.0]);
+            fit_gains_and_blacks(&mut gains, &mut blacks, &[1.0], &basis, &photographs, 0.03, to_threshold);
+            assert!((blacks[0] - line(hidden)).abs() < 1e-12, "{to_threshold}: {blacks:?}, {}", line(hidden));
+        }
+        assert!(line(0.03) - line(0.0) > 0.01, "the two lines must differ for the test to tell them apart");
     }
 
     /// A lopsided ball of smoke seen by three cameras, lit by `lights`

@@ -127,6 +127,11 @@ pub struct FitSettings {
     /// subtraction: codes up to 8). Where a photograph is 0, a rendered
     /// value below it is no error; a rendered view is set to 0 below it.
     pub threshold: f64,
+    /// Where a photograph is 0 and a render above the threshold, measure
+    /// the error to the threshold, the most the hidden value can have been
+    /// (the distance from the interval the photograph allows), rather than
+    /// to 0. Off by default.
+    pub hidden_to_threshold: bool,
     /// Correct every training camera's principal point so that its
     /// photograph agrees with the render ([`super::align`]), from the second
     /// stage on (level, or the finest after the decoder's), whenever the lights are fitted again; the offsets' mean
@@ -342,6 +347,7 @@ impl Default for FitSettings {
             g: 0.6,
             albedo: 1.0,
             threshold: 8.0 / 255.0,
+            hidden_to_threshold: false,
             align: true,
             zoom: true,
             roll: false,
@@ -679,6 +685,7 @@ mod tests {
                 "one_gain" => !settings.gains,
                 "rig_gains" => settings.rig_gains,
                 "black_level" => settings.black_level,
+                "hidden_to_threshold" => settings.hidden_to_threshold,
                 "log_density" => settings.log_density,
                 "additive" => !settings.log_density,
                 n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],

@@ -289,18 +289,27 @@ impl<'a> FrameFit<'a> {
         Ok(())
     }
 
+    /// What the renders are fitted to, censored by `rendered` where the
+    /// capture's threshold hides their error ([`censored`]).
+    fn targets(&self, rendered: Option<&[Image]>) -> Vec<Image> {
+        let to_threshold = self.settings.hidden_to_threshold;
+        censored(&self.images, rendered, self.threshold, &self.gains, &self.blacks, to_threshold)
+    }
+
     /// The lights' intensities and the emission fitted to the photographs
     /// (censored by the last render), then, with `gains` and if the
     /// settings fit them, the gains. Returns the targets and the unit renders.
     pub(super) fn refit_lighting(&mut self, gains: bool) -> Result<(Vec<Image>, Vec<Vec<Image>>)> {
-        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains, &self.blacks);
+        let targets = self.targets(self.last.as_deref());
         let per = disc_points(self.settings.light_radius_deg);
         let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
         if self.settings.gains && gains && !self.gains_held {
             let weights = weights_of(&self.scene, per);
             if self.settings.black_level {
                 let (photographs, threshold) = (&self.photographs, self.threshold);
-                fit_gains_and_blacks(&mut self.gains, &mut self.blacks, &weights, &basis, photographs, threshold);
+                let to_threshold = self.settings.hidden_to_threshold;
+                let (gains, blacks) = (&mut self.gains, &mut self.blacks);
+                fit_gains_and_blacks(gains, blacks, &weights, &basis, photographs, threshold, to_threshold);
             } else {
                 fit_gains(&mut self.gains, &weights, &basis, &targets);
             }
@@ -323,7 +332,7 @@ impl<'a> FrameFit<'a> {
         self.scene.render.seed = settings.seed.wrapping_add(self.renders);
         self.renders += 1;
         let frozen = Frozen::new(&self.scene, Some(support));
-        let targets = censored(&self.images, Some(&frozen.images), self.threshold, &self.gains, &self.blacks);
+        let targets = self.targets(Some(&frozen.images));
         let reverse = reverse_gradient(&frozen, &targets, Subset::full());
         self.last = Some(frozen.images.clone());
         let (smooth, smooth_grad) = smoothness(density, hull, settings.smoothness, self.smoothness_axes);
@@ -349,7 +358,7 @@ impl<'a> FrameFit<'a> {
 
     /// The lights and emission fitted once more to the last density: the fit.
     pub(super) fn finish(mut self) -> Result<Fit> {
-        let targets = censored(&self.images, self.last.as_deref(), self.threshold, &self.gains, &self.blacks);
+        let targets = self.targets(self.last.as_deref());
         let per = disc_points(self.settings.light_radius_deg);
         let basis = fit_lights(&mut self.scene, &targets, self.ambient, per, &mut self.renders)?;
         let model = self.settings.model;

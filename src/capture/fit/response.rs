@@ -8,16 +8,19 @@ use crate::image::Image;
 
 /// `targets` where the capture's threshold hides nothing, and `rendered`
 /// itself (no error) where a target is 0 and the render is below the
-/// threshold: there the photograph cannot tell the render is wrong.
-/// `threshold` is in linear units of the photographs; a camera's render
-/// `r` meets it where `gain r + black` does. Without a render (none yet),
-/// `targets` as they are.
+/// threshold: there the photograph cannot tell the render is wrong. Where
+/// a target is 0 and the render above the threshold, 0, or with
+/// `to_threshold` the threshold itself (the most the hidden value can have
+/// been). `threshold` is in linear units of the photographs; a camera's
+/// render `r` meets it where `gain r + black` does. Without a render (none
+/// yet), `targets` as they are.
 pub(super) fn censored(
     targets: &[Image],
     rendered: Option<&[Image]>,
     threshold: f64,
     gains: &[f64],
     blacks: &[f64],
+    to_threshold: bool,
 ) -> Vec<Image> {
     let Some(rendered) = rendered else { return targets.to_vec() };
     targets
@@ -31,7 +34,11 @@ pub(super) fn censored(
                 .data
                 .iter()
                 .zip(&r.data)
-                .map(|(&t, &r)| if t == 0.0 && r * gain + black < threshold { r } else { t })
+                .map(|(&t, &r)| match t == 0.0 {
+                    true if r * gain + black < threshold => r,
+                    true if to_threshold => (threshold - black) / gain,
+                    _ => t,
+                })
                 .collect(),
         })
         .collect()
@@ -72,13 +79,26 @@ mod tests {
         let target = [Image { width: 2, height: 1, data: vec![0.0, 0.5] }];
         let censor = |render: f64, black: f64| {
             let rendered = [Image { width: 2, height: 1, data: vec![render, 0.1] }];
-            censored(&target, Some(&rendered), 0.03, &[1.0], &[black])[0].data.clone()
+            censored(&target, Some(&rendered), 0.03, &[1.0], &[black], false)[0].data.clone()
         };
         assert_eq!(censor(0.015, 0.0), vec![0.015, 0.5]);
         assert_eq!(censor(0.015, 0.02), vec![0.0, 0.5]);
         assert_eq!(censor(0.04, 0.0), vec![0.0, 0.5]);
         assert_eq!(censor(0.04, -0.02), vec![0.04, 0.5]);
-        assert_eq!(censored(&target, None, 0.03, &[1.0], &[0.0])[0].data, target[0].data);
+        assert_eq!(censored(&target, None, 0.03, &[1.0], &[0.0], false)[0].data, target[0].data);
+    }
+
+    /// With `to_threshold`, a hidden pixel whose render through the gain and
+    /// black level reaches the threshold is fitted to the threshold in the
+    /// render's units, `(threshold - black) / gain`; one below it is still
+    /// no error, and a pixel the photograph shows is its own target.
+    #[test]
+    fn a_hidden_pixel_above_the_threshold_is_fitted_to_it() {
+        let target = [Image { width: 3, height: 1, data: vec![0.0, 0.0, 0.5] }];
+        let rendered = [Image { width: 3, height: 1, data: vec![0.005, 0.04, 0.1] }];
+        let (gain, black) = (2.0, 0.01);
+        let fitted = censored(&target, Some(&rendered), 0.03, &[gain], &[black], true);
+        assert_eq!(fitted[0].data, vec![0.005, (0.03 - black) / gain, 0.5]);
     }
 
     /// A photograph through the inverse response, over a camera's gain, comes
