@@ -130,7 +130,8 @@ pub struct FitSettings {
     /// Where a photograph is 0 and a render above the threshold, measure
     /// the error to the threshold, the most the hidden value can have been
     /// (the distance from the interval the photograph allows), rather than
-    /// to 0. Off by default.
+    /// to 0; in the black level's line too. Off by default: on the settings
+    /// study's frames it moved every model by at most 0.03 dB.
     pub hidden_to_threshold: bool,
     /// Correct every training camera's principal point so that its
     /// photograph agrees with the render ([`super::align`]), from the second
