@@ -153,7 +153,9 @@ fn run(args: Args) -> Result<()> {
     let mut normal = Normal::new(args.radius);
     for images in read(&learn.capture, &learn.roles, &args.learn_frames, &settings)? {
         let training = &images.training.images[0];
-        let fitted = fit(&images.training.cameras, training, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
+        let ceilings = Some(images.training.ceilings[0].as_slice());
+        let fitted =
+            fit(&images.training.cameras, training, ceilings, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
         let truth = truth_on(&fitted.scene.density, learn_res, learn_seed, images.frame, &settings);
         normal.add(&fitted.scene.density, &truth)?;
         eprintln!("learned from frame {} ({} voxels so far, fit {:.0} s)", images.frame, normal.voxels, fitted.seconds);
@@ -176,7 +178,8 @@ fn run(args: Args) -> Result<()> {
     let mut rows = Vec::new();
     for images in read(&scored.capture, &scored.roles, &args.frames, &settings)? {
         let (cameras, training) = (&images.training.cameras, &images.training.images[0]);
-        let fitted = fit(cameras, training, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
+        let ceilings = Some(images.training.ceilings[0].as_slice());
+        let fitted = fit(cameras, training, ceilings, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
         eprintln!("frame {}: fitted in {:.0} s", images.frame, fitted.seconds);
         let truth = scored_truth.map(|(res, seed)| truth_on(&fitted.scene.density, res, seed, images.frame, &settings));
         let mut score = |arm: &str, arm_fit: &Fit, start: std::time::Instant| -> Result<()> {

@@ -136,7 +136,17 @@ fn run(args: Args) -> Result<()> {
         for (settings, orders) in &arms {
             let start = std::time::Instant::now();
             let held = if args.fitted {
-                fit(&images.training.cameras, training, smoke_box, settings, None, &mut |_| {})?.scene.density
+                fit(
+                    &images.training.cameras,
+                    training,
+                    Some(&images.training.ceilings[0]),
+                    smoke_box,
+                    settings,
+                    None,
+                    &mut |_| {},
+                )?
+                .scene
+                .density
             } else {
                 truth.clone()
             };

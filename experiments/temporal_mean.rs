@@ -124,7 +124,9 @@ fn run(args: Args) -> Result<()> {
             let mut fits = Vec::new();
             for frame in &images {
                 let training = &frame.training.images[0];
-                let fitted = fit(&frame.training.cameras, training, smoke_box, &settings, fixed.as_ref(), &mut |_| {})?;
+                let ceilings = Some(frame.training.ceilings[0].as_slice());
+                let (cameras, fixed) = (&frame.training.cameras, fixed.as_ref());
+                let fitted = fit(cameras, training, ceilings, smoke_box, &settings, fixed, &mut |_| {})?;
                 eprintln!("frame {centre} {}: frame {} fitted in {:.0} s", model.name(), frame.frame, fitted.seconds);
                 fits.push(fitted);
             }

@@ -7,7 +7,7 @@ mod common;
 
 use common::capture::{looking_at_origin, write_png, write_video};
 use common::temp_dir;
-use dualphoton::capture::{calibration, frames, observe, protocol::Protocol};
+use dualphoton::capture::{calibration, frames, observe, protocol::Protocol, settings::FitSettings};
 use dualphoton::io::npy;
 use serde_json::{json, Value};
 use std::path::Path;
@@ -590,7 +590,9 @@ fn made_capture_writes_a_capture_that_reads_back() {
         }
         // Smoke inside the box on black: nothing a background would leave.
         let (lo, hi) = made.grid_box().unwrap();
-        let seen = observe::observe(&made, &[0, 1, 2], &[0, 1, 2], 1, 1.0).unwrap();
+        let seen =
+            observe::observe(&made, &[0, 1, 2], &[0, 1, 2], &FitSettings { factor: 1, ..FitSettings::default() })
+                .unwrap();
         assert_eq!(observe::light_outside_box(&seen, &[0, 1, 2], &lo, &hi).unwrap(), None, "{share}");
     }
     assert!(middles.iter().all(|&v| v > 0.0), "a view's middle has no smoke: {middles:?}");

@@ -175,7 +175,7 @@ pub fn run(
     for frames_now in todo.chunks(FRAMES_AT_ONCE) {
         for images in frame::read(capture, roles, frames_now, base)? {
             let frame = images.frame;
-            let noise = temporal_noise(capture, &roles.training, frame, base.factor, base.gamma)?;
+            let noise = temporal_noise(capture, &roles.training, frame, base)?;
             let pending: Vec<ImageModel> = models.iter().copied().filter(|&m| !done(&rows, frame, m)).collect();
             for model in pending {
                 let settings = FitSettings { model, ..base.clone() };

@@ -5,7 +5,7 @@
 //! `experiment_real` both go through here.
 
 use super::fit::{fit, render_view, Fit, FitRow};
-use super::observe::{area_average, check_light_outside_box, observe, Observed};
+use super::observe::{area_average, area_ceiling, check_light_outside_box, observe, Observed};
 use super::protocol::{Aligned, Oracle, Protocol, Score};
 use super::rig::Rig;
 use super::settings::FitSettings;
@@ -206,24 +206,29 @@ pub fn read(capture: &Capture, roles: &Roles, wanted: &[usize], settings: &FitSe
             per_frame.push(image);
         }
     }
-    let training = observe(capture, &roles.training, wanted, factor, settings.gamma)?;
+    let training = observe(capture, &roles.training, wanted, settings)?;
     // The held-out photographs are checked as the training ones are: a
     // background left in would otherwise show only as a low score.
     let held_seen = Observed {
         cameras: roles.held_out.iter().map(|&v| capture.views[v].camera.downsample(factor)).collect(),
         images: held.iter().map(|per| per.iter().map(|i| area_average(i, factor, settings.gamma)).collect()).collect(),
+        ceilings: held
+            .iter()
+            .map(|per| per.iter().map(|i| area_ceiling(i, factor, settings.gamma, settings.threshold)).collect())
+            .collect(),
         names: roles.held_out.iter().map(|&v| capture.views[v].name.clone()).collect(),
     };
     check_light_outside_box(capture, &held_seen, wanted)?;
     Ok(wanted
         .iter()
-        .zip(training.images)
+        .zip(training.images.into_iter().zip(training.ceilings))
         .zip(held)
-        .map(|((&frame, images), held_out)| FrameImages {
+        .map(|((&frame, (images, ceilings)), held_out)| FrameImages {
             frame,
             training: Observed {
                 cameras: training.cameras.clone(),
                 images: vec![images],
+                ceilings: vec![ceilings],
                 names: training.names.clone(),
             },
             held_out,
@@ -245,6 +250,7 @@ pub fn fit_frame(
     let fitted = fit(
         &images.training.cameras,
         &images.training.images[0],
+        Some(&images.training.ceilings[0]),
         capture.grid_box()?,
         settings,
         fixed.as_ref(),

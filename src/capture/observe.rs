@@ -11,6 +11,7 @@
 //! its area average is above an absolute code value that ringing does not
 //! reach, and the silhouette is dilated by a margin for the calibration.
 
+use super::settings::FitSettings;
 use super::{frames, Capture};
 use crate::error::{Error, Result};
 use crate::image::Image;
@@ -33,33 +34,41 @@ pub struct Observed {
     pub cameras: Vec<Camera>,
     /// Per frame (in the order asked for), one image per camera.
     pub images: Vec<Vec<Image>>,
+    /// The same with every code below the capture's threshold raised to it
+    /// before the average ([`area_ceiling`]): the most each pixel can have
+    /// been before the threshold hid part of its area.
+    pub ceilings: Vec<Vec<Image>>,
     /// The cameras' names.
     pub names: Vec<String>,
 }
 
-/// Frames `wanted` of cameras `views` of `capture`, downsampled by
-/// `factor` ([`area_average`] under the response's `gamma`), and checked
-/// for light outside the smoke box.
-pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize, gamma: f64) -> Result<Observed> {
-    let observed = downsampled(capture, views, wanted, factor, gamma)?;
+/// Frames `wanted` of cameras `views` of `capture`, downsampled by the
+/// `factor` of `settings` ([`area_average`] under their response's
+/// `gamma`; [`area_ceiling`] under their `threshold` too), and checked for
+/// light outside the smoke box.
+pub fn observe(capture: &Capture, views: &[usize], wanted: &[usize], settings: &FitSettings) -> Result<Observed> {
+    let observed = downsampled(capture, views, wanted, settings)?;
     check_light_outside_box(capture, &observed, wanted)?;
     Ok(observed)
 }
 
 /// [`observe`] without the check: for frames read again beside one that
 /// was checked, which would repeat its warning.
-fn downsampled(capture: &Capture, views: &[usize], wanted: &[usize], factor: usize, gamma: f64) -> Result<Observed> {
+fn downsampled(capture: &Capture, views: &[usize], wanted: &[usize], settings: &FitSettings) -> Result<Observed> {
+    let (factor, gamma) = (settings.factor, settings.gamma);
     let mut images = vec![Vec::with_capacity(views.len()); wanted.len()];
+    let mut ceilings = images.clone();
     let mut cameras = Vec::with_capacity(views.len());
     for &v in views {
         let view = &capture.views[v];
-        for (per_frame, full) in images.iter_mut().zip(frames::read(view, wanted)?) {
+        for ((per_frame, ceiling), full) in images.iter_mut().zip(&mut ceilings).zip(frames::read(view, wanted)?) {
             per_frame.push(area_average(&full, factor, gamma));
+            ceiling.push(area_ceiling(&full, factor, gamma, settings.threshold));
         }
         cameras.push(view.camera.downsample(factor));
     }
     let names = views.iter().map(|&v| capture.views[v].name.clone()).collect();
-    Ok(Observed { cameras, images, names })
+    Ok(Observed { cameras, images, ceilings, names })
 }
 
 /// `photograph` (codes) downsampled by `factor` as a camera of larger
@@ -72,6 +81,14 @@ pub fn area_average(photograph: &Image, factor: usize, gamma: f64) -> Image {
         return photograph.downsample(factor);
     }
     photograph.map(|v| v.powf(gamma)).downsample(factor).map(|v| v.powf(1.0 / gamma))
+}
+
+/// [`area_average`] of `photograph` with every code below `threshold`
+/// raised to it: where the capture's processing set codes up to its
+/// threshold to 0 (and its codec rang there), the most the area's mean can
+/// have been. A pixel the threshold hid nothing of is its average.
+pub fn area_ceiling(photograph: &Image, factor: usize, gamma: f64, threshold: f64) -> Image {
+    area_average(&photograph.map(|v| v.max(threshold)), factor, gamma)
 }
 
 /// [`light_outside_box`] on `observed` (frames `wanted` of `capture`), its
@@ -122,26 +139,20 @@ pub fn light_outside_box(observed: &Observed, wanted: &[usize], lo: &Vec3, hi: &
     Ok(Some(format!("{what} (the fit goes on, taking that light for smoke)")))
 }
 
-/// The photographs' noise around `frame` at 1/`factor` of the full
-/// resolution ([`area_average`] under `gamma`): the root mean square over
+/// The photographs' noise around `frame` at the working resolution of
+/// `settings` ([`area_average`] under their curve): the root mean square over
 /// every pixel of `views` (code value / 255) of [`noise_of_three`] on
 /// three consecutive frames (the frame and its neighbours, shifted
 /// inwards at the clip's ends). `None`
 /// for a capture of fewer than three frames. Not checked for light outside
 /// the box: `frame` is checked where it is fitted.
-pub fn temporal_noise(
-    capture: &Capture,
-    views: &[usize],
-    frame: usize,
-    factor: usize,
-    gamma: f64,
-) -> Result<Option<f64>> {
+pub fn temporal_noise(capture: &Capture, views: &[usize], frame: usize, settings: &FitSettings) -> Result<Option<f64>> {
     let count = capture.frame_count();
     if count < 3 {
         return Ok(None);
     }
     let first = first_of_three(frame, count);
-    let seen = downsampled(capture, views, &[first, first + 1, first + 2], factor, gamma)?;
+    let seen = downsampled(capture, views, &[first, first + 1, first + 2], settings)?;
     Ok(Some(noise_of_three([&seen.images[0], &seen.images[1], &seen.images[2]])))
 }
 
@@ -233,6 +244,18 @@ mod tests {
         assert_eq!(area_average(&photograph, 2, 1.0).data, vec![0.5, 0.2]);
     }
 
+    /// A block the threshold (0.1) hid half of can have been as bright as
+    /// its mean with the hidden half at the threshold; codes below it
+    /// (ringing) count as hidden; a block above it is its mean.
+    #[test]
+    fn an_area_ceiling_raises_what_the_threshold_hid_to_it() {
+        let photograph = Image { width: 4, height: 2, data: vec![0.0, 0.5, 0.2, 0.3, 0.05, 0.5, 0.2, 0.3] };
+        let ceiling = area_ceiling(&photograph, 2, 1.0, 0.1);
+        let near = |a: &[f64], b: [f64; 2]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+        assert!(near(&ceiling.data, [0.3, 0.25]), "{:?}", ceiling.data);
+        assert!(near(&area_average(&photograph, 2, 1.0).data, [0.2625, 0.25]));
+    }
+
     #[test]
     fn the_noise_frames_are_a_frame_and_its_neighbours_inside_the_clip() {
         assert_eq!([0, 1, 5, 118, 119].map(|f| first_of_three(f, 120)), [0, 0, 4, 117, 117]);
@@ -294,6 +317,7 @@ mod tests {
         let observed = Observed {
             cameras: vec![camera.clone(), camera.clone()],
             images: vec![vec![smoke.clone(), smoke.clone()], vec![smoke.clone(), lit(200.0, 20.0)]],
+            ceilings: vec![vec![smoke.clone(), smoke.clone()], vec![smoke.clone(), lit(200.0, 20.0)]],
             names: vec!["a".into(), "b".into()],
         };
         // Over half the pixels: an error; a tenth: a warning.

@@ -107,7 +107,7 @@ impl Rig {
     pub fn photographs(capture: &Capture, training: &[usize], settings: &FitSettings) -> Result<Observed> {
         let frames = calibration_frames(capture.frame_count(), settings.rig_frames);
         let rig = rig_settings(settings);
-        observe(capture, training, &frames, rig.factor, rig.gamma)
+        observe(capture, training, &frames, &rig)
     }
 
     /// Fits the rig of `training` cameras of `capture` on its
@@ -133,9 +133,10 @@ impl Rig {
         let mut fit_under = |model: ImageModel, i: usize, from: Option<&Corrections>| {
             let settings = FitSettings { model, ..settings.clone() };
             let (cameras, images) = (&observed.cameras, &observed.images[i]);
+            let ceilings = Some(observed.ceilings[i].as_slice());
             let fitted = match from {
-                None => fit(cameras, images, smoke_box, &settings, None, &mut |_| {})?,
-                Some(from) => fit_aligning_from(cameras, images, smoke_box, &settings, from, &mut |_| {})?,
+                None => fit(cameras, images, ceilings, smoke_box, &settings, None, &mut |_| {})?,
+                Some(from) => fit_aligning_from(cameras, images, ceilings, smoke_box, &settings, from, &mut |_| {})?,
             };
             progress(frames[i], &fitted);
             Ok::<Fit, crate::error::Error>(fitted)

@@ -133,6 +133,14 @@ pub struct FitSettings {
     /// to 0; in the black level's line too. Off by default: on the settings
     /// study's frames it moved every model by at most 0.03 dB.
     pub hidden_to_threshold: bool,
+    /// Fit each working pixel to an interval rather than a value: from its
+    /// photograph to its ceiling, the mean of its area with every code the
+    /// threshold hid raised to the threshold
+    /// ([`crate::capture::observe::area_ceiling`]). A render inside it is
+    /// no error, one outside it is fitted to the nearer end. It extends
+    /// `hidden_to_threshold` (a pixel hidden whole) to pixels the threshold
+    /// hid part of, at the plume's edges. Off by default.
+    pub interval_censoring: bool,
     /// Correct every training camera's principal point so that its
     /// photograph agrees with the render ([`super::align`]), from the second
     /// stage on (level, or the finest after the decoder's), whenever the lights are fitted again; the offsets' mean
@@ -349,6 +357,7 @@ impl Default for FitSettings {
             albedo: 1.0,
             threshold: 8.0 / 255.0,
             hidden_to_threshold: false,
+            interval_censoring: false,
             align: true,
             zoom: true,
             roll: false,
@@ -687,6 +696,7 @@ mod tests {
                 "rig_gains" => settings.rig_gains,
                 "black_level" => settings.black_level,
                 "hidden_to_threshold" => settings.hidden_to_threshold,
+                "interval_censoring" => settings.interval_censoring,
                 "log_density" => settings.log_density,
                 "additive" => !settings.log_density,
                 n if n.starts_with("lr_") => settings.lr.to_string() == n["lr_".len()..],

@@ -5,7 +5,7 @@
 //! cameras aligned) every few of them.
 
 use super::aligning::{align_cameras, at_scale, Moves, Seen};
-use super::response::{censored, over_response};
+use super::response::{censored, over_response, within};
 use super::{Fit, FitRow};
 use crate::capture::align::{Corrections, Free};
 use crate::capture::density::{
@@ -52,6 +52,11 @@ pub(super) struct FrameFit<'a> {
     /// The photographs less their cameras' black levels, over their gains:
     /// what the renders are fitted to.
     images: Vec<Image>,
+    /// With [`FitSettings::interval_censoring`], the photographs' ceilings
+    /// through the inverse response at the working resolution, and at this
+    /// stage's as `images` are.
+    working_ceilings: Option<Vec<Image>>,
+    ceilings: Option<Vec<Image>>,
     gains: Vec<f64>,
     blacks: Vec<f64>,
     /// Whether the gains are a rig's, held ([`FitSettings::rig_gains`]).
@@ -81,6 +86,7 @@ impl<'a> FrameFit<'a> {
     pub(super) fn new(
         cameras: &[Camera],
         codes: &'a [Image],
+        ceilings: Option<&[Image]>,
         smoke_box: (Vec3, Vec3),
         settings: &'a FitSettings,
         fixed: Option<&'a Corrections>,
@@ -95,12 +101,24 @@ impl<'a> FrameFit<'a> {
         };
         let start = Instant::now();
         let (lo, hi) = smoke_box;
-        let photographs: Vec<Image> = codes.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect();
+        let linear =
+            |codes: &[Image]| -> Vec<Image> { codes.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect() };
+        let photographs = linear(codes);
+        let working_ceilings = match (settings.interval_censoring, ceilings) {
+            (false, _) => None,
+            (true, Some(ceilings)) => Some(linear(ceilings)),
+            (true, None) => {
+                return Err(Error(
+                    "interval_censoring needs the photographs' ceilings, which this fit is not given".into(),
+                ))
+            }
+        };
         let held = fixed.and_then(|f| f.gains.clone()).filter(|_| settings.rig_gains);
         let gains_held = held.is_some();
         let gains = held.unwrap_or_else(|| vec![1.0; n]);
         let blacks = vec![0.0; n];
         let images = over_response(&photographs, &gains, &blacks);
+        let ceilings = working_ceilings.as_ref().map(|c| over_response(c, &gains, &blacks));
         let mut smoothness_axes = [settings.horizontal_smoothness; 3];
         smoothness_axes[up_axis(&cameras)] = 1.0;
         let scene = Scene {
@@ -136,6 +154,8 @@ impl<'a> FrameFit<'a> {
             working_photographs: photographs.clone(),
             scale: 1,
             images,
+            working_ceilings,
+            ceilings,
             photographs,
             gains,
             blacks,
@@ -196,7 +216,7 @@ impl<'a> FrameFit<'a> {
         self.scale = scale;
         self.scene.cameras = self.stage_cameras();
         self.photographs = self.working_photographs.iter().map(|p| p.downsample(scale)).collect();
-        self.images = over_response(&self.photographs, &self.gains, &self.blacks);
+        self.respond();
         if self.last.is_some() {
             self.render_last();
         }
@@ -289,11 +309,29 @@ impl<'a> FrameFit<'a> {
         Ok(())
     }
 
+    /// `images` (and `ceilings`) from the photographs at this stage's
+    /// scale, through the gains and black levels as they now are.
+    fn respond(&mut self) {
+        self.images = over_response(&self.photographs, &self.gains, &self.blacks);
+        let scale = self.scale;
+        self.ceilings = self.working_ceilings.as_ref().map(|working| {
+            let at_scale: Vec<Image> = working.iter().map(|c| c.downsample(scale)).collect();
+            over_response(&at_scale, &self.gains, &self.blacks)
+        });
+    }
+
     /// What the renders are fitted to, censored by `rendered` where the
-    /// capture's threshold hides their error ([`censored`]).
+    /// capture's threshold hides their error: between each photograph and
+    /// its ceiling ([`within`]) with `interval_censoring`, else
+    /// [`censored`].
     fn targets(&self, rendered: Option<&[Image]>) -> Vec<Image> {
-        let to_threshold = self.settings.hidden_to_threshold;
-        censored(&self.images, rendered, self.threshold, &self.gains, &self.blacks, to_threshold)
+        match (&self.ceilings, rendered) {
+            (Some(ceilings), Some(rendered)) => within(&self.images, ceilings, rendered),
+            _ => {
+                let to_threshold = self.settings.hidden_to_threshold;
+                censored(&self.images, rendered, self.threshold, &self.gains, &self.blacks, to_threshold)
+            }
+        }
     }
 
     /// The lights' intensities and the emission fitted to the photographs
@@ -313,7 +351,7 @@ impl<'a> FrameFit<'a> {
             } else {
                 fit_gains(&mut self.gains, &weights, &basis, &targets);
             }
-            self.images = over_response(&self.photographs, &self.gains, &self.blacks);
+            self.respond();
         }
         Ok((targets, basis))
     }

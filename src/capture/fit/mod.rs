@@ -112,19 +112,23 @@ impl Fit {
 
 /// Fits the frame whose training images (at 1/`settings.factor` of the
 /// capture's resolution) are `images`, seen by `cameras` (at the same
-/// resolution), with the density on a grid over `smoke_box`. With `fixed`
+/// resolution), with the density on a grid over `smoke_box`; `ceilings`,
+/// where given, are the most each pixel can have been
+/// ([`Observed::ceilings`](crate::capture::observe::Observed::ceilings),
+/// for [`FitSettings::interval_censoring`]). With `fixed`
 /// corrections (a capture's rig) the cameras are corrected by them from the
 /// start and not aligned again.
 pub fn fit(
     cameras: &[Camera],
     images: &[Image],
+    ceilings: Option<&[Image]>,
     smoke_box: (Vec3, Vec3),
     settings: &FitSettings,
     fixed: Option<&Corrections>,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
     settings.validate()?;
-    let state = FrameFit::new(cameras, images, smoke_box, settings, fixed)?;
+    let state = FrameFit::new(cameras, images, ceilings, smoke_box, settings, fixed)?;
     all_stages(state, progress)
 }
 
@@ -137,13 +141,14 @@ pub fn fit(
 pub fn fit_aligning_from(
     cameras: &[Camera],
     images: &[Image],
+    ceilings: Option<&[Image]>,
     smoke_box: (Vec3, Vec3),
     settings: &FitSettings,
     start: &Corrections,
     progress: &mut dyn FnMut(&FitRow),
 ) -> Result<Fit> {
     settings.validate()?;
-    let mut state = FrameFit::new(cameras, images, smoke_box, settings, Some(start))?;
+    let mut state = FrameFit::new(cameras, images, ceilings, smoke_box, settings, Some(start))?;
     state.realign = true;
     all_stages(state, progress)
 }
@@ -182,7 +187,7 @@ pub fn fit_lighting(
     fixed: Option<&Corrections>,
 ) -> Result<Fit> {
     settings.validate()?;
-    let mut state = FrameFit::new(cameras, images, smoke_box, settings, fixed)?;
+    let mut state = FrameFit::new(cameras, images, None, smoke_box, settings, fixed)?;
     state.scene.density = density;
     for _ in 0..LIGHTING_ROUNDS {
         state.render_last();
@@ -210,7 +215,7 @@ pub fn fit_from(
 ) -> Result<Fit> {
     let settings = FitSettings { align: false, ..settings.per_voxel() };
     settings.validate()?;
-    let mut state = FrameFit::new(cameras, images, smoke_box, &settings, fixed)?;
+    let mut state = FrameFit::new(cameras, images, None, smoke_box, &settings, fixed)?;
     state.scene.density = start;
     let finest = settings.updates.len() - 1;
     // Numbered as a later stage (at least 1), so that it starts from the

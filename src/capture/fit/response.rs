@@ -44,6 +44,25 @@ pub(super) fn censored(
         .collect()
 }
 
+/// Each of `rendered` where it lies between its photograph (`floors`) and
+/// that photograph's ceiling (no error: the threshold hid where in between
+/// it is), else the nearer of the two. Both through the response, as the
+/// renders.
+pub(super) fn within(floors: &[Image], ceilings: &[Image], rendered: &[Image]) -> Vec<Image> {
+    floors
+        .iter()
+        .zip(ceilings)
+        .zip(rendered)
+        .map(|((floor, ceiling), r)| Image {
+            width: r.width,
+            height: r.height,
+            data: (floor.data.iter().zip(&ceiling.data).zip(&r.data))
+                .map(|((&lo, &hi), &v)| v.min(hi).max(lo))
+                .collect(),
+        })
+        .collect()
+}
+
 /// `photographs` (linear) less each camera's black level where they are
 /// not 0 (the threshold hid the rest), over its gain.
 pub(super) fn over_response(photographs: &[Image], gains: &[f64], blacks: &[f64]) -> Vec<Image> {
@@ -99,6 +118,16 @@ mod tests {
         let (gain, black) = (2.0, 0.01);
         let fitted = censored(&target, Some(&rendered), 0.03, &[gain], &[black], true);
         assert_eq!(fitted[0].data, vec![0.005, (0.03 - black) / gain, 0.5]);
+    }
+
+    /// A render inside its photograph's interval is its own target; below
+    /// it, the photograph; above it, the ceiling.
+    #[test]
+    fn a_render_is_fitted_to_the_nearer_end_of_its_interval() {
+        let im = |data: Vec<f64>| Image { width: 3, height: 1, data };
+        let (floors, ceilings) = ([im(vec![0.0, 0.2, 0.2])], [im(vec![0.03, 0.25, 0.25])]);
+        let targets = within(&floors, &ceilings, &[im(vec![0.01, 0.1, 0.4])]);
+        assert_eq!(targets[0].data, vec![0.01, 0.2, 0.25]);
     }
 
     /// A photograph through the inverse response, over a camera's gain, comes

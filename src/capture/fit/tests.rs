@@ -59,7 +59,7 @@ fn the_log_density_update_fits_a_ball() {
             log_density,
             ..FitSettings::default()
         };
-        fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap()
+        fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap()
     };
     let (additive, multiplicative) = (run(false), run(true));
     for done in [&additive, &multiplicative] {
@@ -106,14 +106,16 @@ fn a_fit_aligning_from_its_own_corrections_finds_more_of_a_moved_camera() {
         rolls: f.rolls.clone(),
         gains: None,
     };
-    let first = fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap();
-    let second = fit_aligning_from(&cameras, &images, smoke_box, &settings, &corrections(&first), &mut |_| {}).unwrap();
-    let third = fit_aligning_from(&cameras, &images, smoke_box, &settings, &corrections(&second), &mut |_| {}).unwrap();
+    let first = fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap();
+    let second =
+        fit_aligning_from(&cameras, &images, None, smoke_box, &settings, &corrections(&first), &mut |_| {}).unwrap();
+    let third =
+        fit_aligning_from(&cameras, &images, None, smoke_box, &settings, &corrections(&second), &mut |_| {}).unwrap();
     let found = [moved(&first), moved(&second), moved(&third)];
     assert!(found[0] > 0.5 && found[0] < 2.0, "{found:?}");
     assert!(found[1] > found[0] + 0.4 && found[2] > found[1] && found[2] < 3.5, "{found:?}");
     // Held by the same corrections (a rig's), the cameras do not move again.
-    let held = fit(&cameras, &images, smoke_box, &settings, Some(&corrections(&second)), &mut |_| {}).unwrap();
+    let held = fit(&cameras, &images, None, smoke_box, &settings, Some(&corrections(&second)), &mut |_| {}).unwrap();
     assert_eq!(held.offsets, corrections(&second).apply(&cameras, 4).unwrap().1);
 }
 
@@ -169,7 +171,7 @@ fn a_fit_on_the_image_pyramid_fits_a_ball() {
             image_pyramid,
             ..FitSettings::default()
         };
-        fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap()
+        fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap()
     };
     let (flat, pyramid) = (run(false), run(true));
     assert_ne!(flat.log[0].image_mse, pyramid.log[0].image_mse, "the pyramid changed nothing");
@@ -202,7 +204,7 @@ fn decoded_ball_fit(settings: &FitSettings) -> (Fit, Vec<f64>, Vec<f64>) {
         threshold: 0.0,
         ..settings.clone()
     };
-    let done = fit(&cameras, &images, TALL_BOX, &settings, None, &mut |_| {}).unwrap();
+    let done = fit(&cameras, &images, None, TALL_BOX, &settings, None, &mut |_| {}).unwrap();
     let stage = |s: usize| done.log.iter().filter(|r| r.level == s).map(|r| r.image_mse).collect::<Vec<f64>>();
     let (first, second) = (stage(0), stage(1));
     (done, first, second)
@@ -256,7 +258,7 @@ fn a_fit_is_bit_identical_for_any_thread_count() {
     };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| fit(&cameras, &images, smoke_box, &settings, None, &mut |_| {}).unwrap())
+        pool.install(|| fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap())
     };
     let (one, three) = (run(1), run(3));
     assert!(one.offsets.iter().any(|o| o[0] != 0.0), "the cameras never moved: the test exercises no alignment");
@@ -362,4 +364,29 @@ fn the_lighting_of_a_known_density_comes_back() {
     assert_eq!(held.gains, vec![0.8, 1.25, 1.0]);
     let fitted = fit_lighting(&cameras, &brighter, smoke_box, truth.density, &settings, Some(&rig)).unwrap();
     assert!(fitted.gains[1] > 1.3 * fitted.gains[0].max(fitted.gains[2]), "gains {:?}", fitted.gains);
+}
+
+/// Photographs that hide nothing (threshold 0) are their own ceilings:
+/// fitted to the interval between them, a fit is the plain fit to the
+/// bit. Without ceilings the setting is refused, not ignored.
+#[test]
+fn an_interval_of_no_width_is_the_plain_fit() {
+    let (cameras, images) = ball_views(32, 8.0);
+    let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+    let settings = FitSettings {
+        model: ImageModel::EmissionAbsorption,
+        factor: 8,
+        resolution: 8,
+        updates: vec![5, 5],
+        align: false,
+        threshold: 0.0,
+        ..FitSettings::default()
+    };
+    let interval = FitSettings { interval_censoring: true, ..settings.clone() };
+    let plain = fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap();
+    let within = fit(&cameras, &images, Some(&images), smoke_box, &interval, None, &mut |_| {}).unwrap();
+    assert_eq!(plain.scene.density.data, within.scene.density.data);
+    assert_eq!(plain.gains, within.gains);
+    let refused = fit(&cameras, &images, None, smoke_box, &interval, None, &mut |_| {}).unwrap_err().0;
+    assert!(refused.contains("interval_censoring needs the photographs' ceilings"), "{refused}");
 }
