@@ -139,7 +139,9 @@ pub struct FitSettings {
     /// ([`crate::capture::observe::area_ceiling`]). A render inside it is
     /// no error, one outside it is fitted to the nearer end. It extends
     /// `hidden_to_threshold` (a pixel hidden whole) to pixels the threshold
-    /// hid part of, at the plume's edges. Off by default.
+    /// hid part of, at the plume's edges. Off by default: on the settings
+    /// study's frames multiple scattering lost 0.03 dB on the scoring
+    /// camera, and every model fitted the training cameras 4 % less closely.
     pub interval_censoring: bool,
     /// Correct every training camera's principal point so that its
     /// photograph agrees with the render ([`super::align`]), from the second
