@@ -12,6 +12,12 @@ use dualphoton::io::npy;
 use serde_json::{json, Value};
 use std::path::Path;
 
+/// The fit settings of the command tests, as a JSON object's fields: a
+/// coarse grid and short fits (the commands' plumbing is tested here, not
+/// the defaults' fit), the rig without its probe fit under multiple
+/// scattering (a test of its own).
+const SMALL: &str = r#""rig_lit_share": null, "resolution": 16, "updates": [10, 20], "photons": 4000"#;
+
 #[test]
 fn the_protocol_scores_black_as_its_share_of_the_crop() {
     // A 1080x1920 truth that is 0.5 on 50 of the crop's 495 half-resolution columns, black elsewhere.
@@ -109,9 +115,6 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     std::fs::write(dir.join("info.json"), calib.to_string()).unwrap();
     let exe = env!("CARGO_BIN_EXE_experiment_real");
     let out = dir.join("out");
-    // The rig without its probe fit under multiple scattering (a test of its own),
-    // on a coarse grid: the command's plumbing is tested here, not the defaults' fit.
-    const SMALL: &str = r#""rig_lit_share": null, "resolution": 16, "updates": [10, 20], "photons": 4000"#;
     let no_probe = dir.join("no_probe.json");
     std::fs::write(&no_probe, format!("{{{SMALL}}}")).unwrap();
     let run_models = |frames: &str, models: &str, out: &std::path::Path| {
@@ -288,9 +291,6 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     };
     let exe = env!("CARGO_BIN_EXE_dualphoton");
     let out = dir.join("out");
-    // The rig without its probe fit under multiple scattering (a test of its own),
-    // on a coarse grid: the command's plumbing is tested here, not the defaults' fit.
-    const SMALL: &str = r#""rig_lit_share": null, "resolution": 16, "updates": [10, 20], "photons": 4000"#;
     let no_probe = dir.join("no_probe.json");
     std::fs::write(&no_probe, format!("{{{SMALL}}}")).unwrap();
     let fit = |frame: &str| {
