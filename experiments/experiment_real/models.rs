@@ -168,6 +168,15 @@ pub fn run(
         rows.iter().any(|r| r.frame == frame && r.model == model.name())
     };
     let todo: Vec<usize> = frames.iter().copied().filter(|&f| models.iter().any(|&m| !done(&rows, f, m))).collect();
+    let kept: usize = frames.iter().map(|&f| models.iter().filter(|&&m| done(&rows, f, m)).count()).sum();
+    if kept > 0 {
+        eprintln!(
+            "{}: {kept} of {} fits are there already and are kept (a run with the same settings resumes; \
+             --out another folder fits every frame afresh)",
+            csv.display(),
+            frames.len() * models.len()
+        );
+    }
     let rig = reuse::rig(capture, roles, base, &csv.with_file_name("rig.json"))?;
     let shown = figure_frames(frames);
     // A few frames at a time: a frame's photographs are read at full

@@ -162,6 +162,7 @@ fn differences(mine: &serde_json::Value, theirs: &serde_json::Value, fits: bool)
 /// the training cameras and written there.
 pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) -> Result<Option<Rig>> {
     if path.exists() && base.aligns_once() {
+        eprintln!("rig: the training cameras' alignment taken from {}", path.display());
         return read_rig(path, capture, roles, base).map(Some).map_err(|why| start_afresh(path, &why));
     }
     let rig = fit_rig(capture, roles, base, None)?;

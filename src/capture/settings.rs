@@ -254,6 +254,13 @@ pub struct FitSettings {
     /// the offsets came out at -1 to -8 codes and lowered the training
     /// error 4 %, and the scoring camera moved by 0.01 dB.
     pub black_level: bool,
+    /// Model the lenses' natural fall-off (vignetting): every camera passes
+    /// cos^4 of the angle between a pixel's ray and its optical axis, as an
+    /// ideal thin lens does, so a photograph is divided by it before the fit
+    /// and every rendered view multiplied by it. Off by default: the
+    /// cameras' processing corrects lens shading, and cameras at one
+    /// height and tilt see the smoke through the same part of the lens.
+    pub lens_falloff: bool,
     /// Fit the emission beside the lights in the lit models: an ambient
     /// term, light that reaches every voxel alike and unshadowed. With it,
     /// the lit models contain emission-absorption (their lights all at 0).
@@ -375,6 +382,7 @@ impl Default for FitSettings {
             gains: true,
             rig_gains: false,
             black_level: false,
+            lens_falloff: false,
             ambient: true,
             gamma: 1.0,
             image_pyramid: true,
@@ -697,6 +705,7 @@ mod tests {
                 "one_gain" => !settings.gains,
                 "rig_gains" => settings.rig_gains,
                 "black_level" => settings.black_level,
+                "lens_falloff" => settings.lens_falloff,
                 "hidden_to_threshold" => settings.hidden_to_threshold,
                 "interval_censoring" => settings.interval_censoring,
                 "log_density" => settings.log_density,

@@ -5,7 +5,7 @@
 //! cameras aligned) every few of them.
 
 use super::aligning::{align_cameras, at_scale, Moves, Seen};
-use super::response::{censored, over_response, within};
+use super::response::{censored, over_response, through_lens, within};
 use super::{Fit, FitRow};
 use crate::capture::align::{Corrections, Free};
 use crate::capture::density::{
@@ -101,8 +101,12 @@ impl<'a> FrameFit<'a> {
         };
         let start = Instant::now();
         let (lo, hi) = smoke_box;
-        let linear =
-            |codes: &[Image]| -> Vec<Image> { codes.iter().map(|im| im.map(|v| v.powf(settings.gamma))).collect() };
+        // Through the inverse response, and the lens's fall-off taken out
+        // where the settings model it: what the renders are fitted to.
+        let linear = |codes: &[Image]| -> Vec<Image> {
+            let linear = codes.iter().map(|im| im.map(|v| v.powf(settings.gamma)));
+            linear.zip(&cameras).map(|(im, camera)| through_lens(im, camera, settings, true)).collect()
+        };
         let photographs = linear(codes);
         let working_ceilings = match (settings.interval_censoring, ceilings) {
             (false, _) => None,

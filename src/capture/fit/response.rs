@@ -5,6 +5,7 @@
 
 use crate::capture::settings::FitSettings;
 use crate::image::Image;
+use crate::scene::Camera;
 
 /// `targets` where the capture's threshold hides nothing, and `rendered`
 /// itself (no error) where a target is 0 and the render is below the
@@ -70,6 +71,33 @@ pub(super) fn over_response(photographs: &[Image], gains: &[f64], blacks: &[f64]
     cameras.map(|(p, (g, b))| p.map(|v| if v > 0.0 { (v - b) / g } else { 0.0 })).collect()
 }
 
+/// The natural fall-off of an ideal thin lens through `camera`: per pixel,
+/// cos^4 of the angle between the ray through its centre and the optical
+/// axis (1 at the principal point). Turning the camera about its axis
+/// leaves it unchanged.
+pub fn lens_falloff(camera: &Camera) -> Image {
+    let [fx, fy, cx, cy] = camera.intrinsics();
+    let mut falloff = Image::zeros(camera.width, camera.height);
+    for (i, v) in falloff.data.iter_mut().enumerate() {
+        let x = ((i % camera.width) as f64 + 0.5 - cx) / fx;
+        let y = ((i / camera.width) as f64 + 0.5 - cy) / fy;
+        *v = (1.0 + x * x + y * y).powi(-2);
+    }
+    falloff
+}
+
+/// `image` as `camera` passes it: times its [`lens_falloff`] where
+/// `settings` model it ([`FitSettings::lens_falloff`]), else as it is.
+/// `divide` takes the fall-off out instead, as from a photograph.
+pub fn through_lens(image: Image, camera: &Camera, settings: &FitSettings, divide: bool) -> Image {
+    if !settings.lens_falloff {
+        return image;
+    }
+    let falloff = lens_falloff(camera);
+    let data = image.data.iter().zip(&falloff.data).map(|(v, f)| if divide { v / f } else { v * f }).collect();
+    Image { data, ..image }
+}
+
 /// A rendered view through a camera of `gain` and `black` level and the
 /// response of `settings`: the gain and black level, the curve
 /// ([`FitSettings::gamma`]), then the capture's processing (0 below its
@@ -88,6 +116,8 @@ pub fn respond(image: &Image, gain: f64, black: f64, settings: &FitSettings) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Vec3;
+    use crate::scene::Lens;
 
     /// A dark pixel is no error where the render through the camera's gain
     /// and black level stays below the threshold: a black level lifting the
@@ -128,6 +158,33 @@ mod tests {
         let (floors, ceilings) = ([im(vec![0.0, 0.2, 0.2])], [im(vec![0.03, 0.25, 0.25])]);
         let targets = within(&floors, &ceilings, &[im(vec![0.01, 0.1, 0.4])]);
         assert_eq!(targets[0].data, vec![0.01, 0.2, 0.25]);
+    }
+
+    /// The fall-off is 1 at the principal point and cos^4 of the angle off
+    /// the axis elsewhere (a pixel whose centre is one focal length off
+    /// axis passes a quarter); through the lens and back is the identity,
+    /// and without the setting nothing changes.
+    #[test]
+    fn the_lens_falloff_is_cos4_of_the_angle_off_axis() {
+        let camera = Camera {
+            position: Vec3::new(0.0, 0.0, 5.0),
+            look_at: Vec3::zeros(),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            lens: Lens::Pinhole { fx: 2.0, fy: 2.0, cx: 0.5, cy: 0.5 },
+            width: 3,
+            height: 1,
+        };
+        let falloff = lens_falloff(&camera);
+        assert_eq!(falloff.data[0], 1.0);
+        assert!((falloff.data[1] - 1.25f64.powi(-2)).abs() < 1e-15, "{falloff:?}");
+        assert!((falloff.data[2] - 0.25).abs() < 1e-15, "{falloff:?}");
+        let on = FitSettings { lens_falloff: true, ..FitSettings::default() };
+        let image = Image { width: 3, height: 1, data: vec![0.2, 0.4, 0.8] };
+        let seen = through_lens(image.clone(), &camera, &on, false);
+        assert!((seen.data[2] - 0.2).abs() < 1e-15, "{seen:?}");
+        let back = through_lens(seen, &camera, &on, true);
+        assert!(back.data.iter().zip(&image.data).all(|(a, b)| (a - b).abs() < 1e-15), "{back:?}");
+        assert_eq!(through_lens(image.clone(), &camera, &FitSettings::default(), false), image);
     }
 
     /// A photograph through the inverse response, over a camera's gain, comes

@@ -390,3 +390,42 @@ fn an_interval_of_no_width_is_the_plain_fit() {
     let refused = fit(&cameras, &images, None, smoke_box, &interval, None, &mut |_| {}).unwrap_err().0;
     assert!(refused.contains("interval_censoring needs the photographs' ceilings"), "{refused}");
 }
+
+/// Photographs seen through a lens, fitted with its fall-off modelled, give
+/// the fit of the same photographs without the lens: the fall-off is taken
+/// out of the photographs before the fit and put back into every rendered
+/// view, the training cameras' and any other's.
+#[test]
+fn a_fit_through_the_lens_takes_its_falloff_out_and_puts_it_back() {
+    use super::response::{lens_falloff, through_lens};
+    let (cameras, images) = ball_views(32, 8.0);
+    let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
+    let settings = FitSettings {
+        model: ImageModel::EmissionAbsorption,
+        factor: 8,
+        resolution: 8,
+        updates: vec![5, 5],
+        align: false,
+        threshold: 0.0,
+        ..FitSettings::default()
+    };
+    let lens = FitSettings { lens_falloff: true, ..settings.clone() };
+    let seen: Vec<Image> = images.iter().zip(&cameras).map(|(i, c)| through_lens(i.clone(), c, &lens, false)).collect();
+    let falloff = lens_falloff(&cameras[0]);
+    assert!(falloff.data.iter().any(|&f| f < 0.9), "the lens passes nearly everything: the test exercises nothing");
+    let plain = fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap();
+    let through = fit(&cameras, &seen, None, smoke_box, &lens, None, &mut |_| {}).unwrap();
+    let near = |a: &[f64], b: &[f64]| {
+        let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-6 * scale)
+    };
+    assert!(near(&through.scene.density.data, &plain.scene.density.data), "the fall-off was not taken out");
+    for ((view, plain_view), camera) in training_views(&through).iter().zip(training_views(&plain)).zip(&cameras) {
+        let expected: Vec<f64> = plain_view.data.iter().zip(&lens_falloff(camera).data).map(|(v, f)| v * f).collect();
+        assert!(near(&view.data, &expected), "a training view lacks the fall-off");
+    }
+    let other = Camera { width: 48, height: 40, ..cameras[1].clone() };
+    let expected: Vec<f64> =
+        render_view(&plain, &other).data.iter().zip(&lens_falloff(&other).data).map(|(v, f)| v * f).collect();
+    assert!(near(&render_view(&through, &other).data, &expected), "another camera's view lacks the fall-off");
+}

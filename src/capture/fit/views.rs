@@ -2,7 +2,7 @@
 //! their error against the photographs, and any other camera's view (the
 //! held-out one's) at any resolution.
 
-use super::response::respond;
+use super::response::{respond, through_lens};
 use super::Fit;
 use crate::grad::loss::mse;
 use crate::image::Image;
@@ -10,11 +10,16 @@ use crate::render::render_photon;
 use crate::scene::Camera;
 
 /// The training cameras' views of a fitted frame at the working
-/// resolution, through their gains and the response.
+/// resolution, through their lenses, gains and the response.
 pub fn training_views(fit: &Fit) -> Vec<Image> {
-    let rendered = render_photon(&fit.scene).images;
+    let rendered = render_photon(&fit.scene).images.into_iter().zip(&fit.scene.cameras);
     let responses = fit.gains.iter().zip(&fit.black_levels);
-    rendered.iter().zip(responses).map(|(image, (&gain, &black))| respond(image, gain, black, &fit.settings)).collect()
+    rendered
+        .zip(responses)
+        .map(|((image, camera), (&gain, &black))| {
+            respond(&through_lens(image, camera, &fit.settings, false), gain, black, &fit.settings)
+        })
+        .collect()
 }
 
 /// Root mean square difference, in code value / full scale, between the
@@ -42,7 +47,8 @@ pub fn render_view(fit: &Fit, camera: &Camera) -> Image {
     }
     scene.render.spp = VIEW_SPP;
     scene.render.seed = fit.settings.seed.wrapping_add(u64::MAX / 2);
-    respond(&render_photon(&scene).images[0], 1.0, held_out_black(fit), &fit.settings)
+    let seen = through_lens(render_photon(&scene).images.swap_remove(0), camera, &fit.settings, false);
+    respond(&seen, 1.0, held_out_black(fit), &fit.settings)
 }
 
 /// A held-out camera's black level: the training cameras' mean, by the
