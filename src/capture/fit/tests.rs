@@ -366,11 +366,9 @@ fn the_lighting_of_a_known_density_comes_back() {
     assert!(fitted.gains[1] > 1.3 * fitted.gains[0].max(fitted.gains[2]), "gains {:?}", fitted.gains);
 }
 
-/// Photographs that hide nothing (threshold 0) are their own ceilings:
-/// fitted to the interval between them, a fit is the plain fit to the
-/// bit. Without ceilings the setting is refused, not ignored.
-#[test]
-fn an_interval_of_no_width_is_the_plain_fit() {
+/// A ball's small views and a short emission-absorption fit of them that
+/// hides nothing (threshold 0) and leaves the cameras as they are.
+fn small_ball_fit() -> ([Camera; 3], Vec<Image>, (Vec3, Vec3), FitSettings) {
     let (cameras, images) = ball_views(32, 8.0);
     let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
     let settings = FitSettings {
@@ -382,6 +380,15 @@ fn an_interval_of_no_width_is_the_plain_fit() {
         threshold: 0.0,
         ..FitSettings::default()
     };
+    (cameras, images, smoke_box, settings)
+}
+
+/// Photographs that hide nothing (threshold 0) are their own ceilings:
+/// fitted to the interval between them, a fit is the plain fit to the
+/// bit. Without ceilings the setting is refused, not ignored.
+#[test]
+fn an_interval_of_no_width_is_the_plain_fit() {
+    let (cameras, images, smoke_box, settings) = small_ball_fit();
     let interval = FitSettings { interval_censoring: true, ..settings.clone() };
     let plain = fit(&cameras, &images, None, smoke_box, &settings, None, &mut |_| {}).unwrap();
     let within = fit(&cameras, &images, Some(&images), smoke_box, &interval, None, &mut |_| {}).unwrap();
@@ -398,17 +405,7 @@ fn an_interval_of_no_width_is_the_plain_fit() {
 #[test]
 fn a_fit_through_the_lens_takes_its_falloff_out_and_puts_it_back() {
     use super::response::{lens_falloff, through_lens};
-    let (cameras, images) = ball_views(32, 8.0);
-    let smoke_box = (Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5));
-    let settings = FitSettings {
-        model: ImageModel::EmissionAbsorption,
-        factor: 8,
-        resolution: 8,
-        updates: vec![5, 5],
-        align: false,
-        threshold: 0.0,
-        ..FitSettings::default()
-    };
+    let (cameras, images, smoke_box, settings) = small_ball_fit();
     let lens = FitSettings { lens_falloff: true, ..settings.clone() };
     let seen: Vec<Image> = images.iter().zip(&cameras).map(|(i, c)| through_lens(i.clone(), c, &lens, false)).collect();
     let falloff = lens_falloff(&cameras[0]);
