@@ -257,9 +257,10 @@ pub struct FitSettings {
     /// Model the lenses' natural fall-off (vignetting): every camera passes
     /// cos^4 of the angle between a pixel's ray and its optical axis, as an
     /// ideal thin lens does, so a photograph is divided by it before the fit
-    /// and every rendered view multiplied by it. Off by default: the
-    /// cameras' processing corrects lens shading, and cameras at one
-    /// height and tilt see the smoke through the same part of the lens.
+    /// and every rendered view multiplied by it. Off by default: cameras
+    /// at one height and tilt see a point of the smoke through nearly the
+    /// same part of their lenses, so the density takes the fall-off up;
+    /// on the settings study's frames it cost 0.03 dB.
     pub lens_falloff: bool,
     /// Fit the emission beside the lights in the lit models: an ambient
     /// term, light that reaches every voxel alike and unshadowed. With it,
