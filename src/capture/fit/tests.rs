@@ -418,11 +418,10 @@ fn a_fit_through_the_lens_takes_its_falloff_out_and_puts_it_back() {
     };
     assert!(near(&through.scene.density.data, &plain.scene.density.data), "the fall-off was not taken out");
     for ((view, plain_view), camera) in training_views(&through).iter().zip(training_views(&plain)).zip(&cameras) {
-        let expected: Vec<f64> = plain_view.data.iter().zip(&lens_falloff(camera).data).map(|(v, f)| v * f).collect();
-        assert!(near(&view.data, &expected), "a training view lacks the fall-off");
+        let expected = through_lens(plain_view, camera, &lens, false);
+        assert!(near(&view.data, &expected.data), "a training view lacks the fall-off");
     }
     let other = Camera { width: 48, height: 40, ..cameras[1].clone() };
-    let expected: Vec<f64> =
-        render_view(&plain, &other).data.iter().zip(&lens_falloff(&other).data).map(|(v, f)| v * f).collect();
-    assert!(near(&render_view(&through, &other).data, &expected), "another camera's view lacks the fall-off");
+    let expected = through_lens(render_view(&plain, &other), &other, &lens, false);
+    assert!(near(&render_view(&through, &other).data, &expected.data), "another camera's view lacks the fall-off");
 }
