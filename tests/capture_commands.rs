@@ -212,6 +212,20 @@ fn experiment_real_scores_black_and_the_nearest_view() {
     let fits_more = std::fs::read_to_string(out.join("fits.csv")).unwrap();
     assert!(fits_more.starts_with(&fits) && fits_more.lines().count() == fits.lines().count() + 1, "{fits_more}");
     assert!(fits_more.lines().last().unwrap().starts_with("1,"), "{fits_more}");
+    // Each row and the rig name the revision that fitted them, and so does
+    // the manifest: a run keeping rows another revision fitted names both.
+    let manifest =
+        || -> Value { serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap() };
+    let own = manifest()["fit_revisions"][0].as_str().unwrap().to_string();
+    assert!(own.starts_with(manifest()["revision"].as_str().unwrap()), "{}", manifest());
+    assert_eq!((manifest()["fit_revisions"].clone(), manifest()["rig_revision"].clone()), (json!([own]), json!(own)));
+    let earlier: String = fits_more.replacen(&format!(",{own}\n"), ",0123456789ab\n", 1);
+    assert_ne!(earlier, fits_more, "{fits_more}");
+    std::fs::write(out.join("fits.csv"), &earlier).unwrap();
+    let kept = run("0,1,2");
+    assert!(kept.status.success(), "{}", String::from_utf8_lossy(&kept.stderr));
+    assert_eq!(std::fs::read_to_string(out.join("fits.csv")).unwrap(), earlier, "nothing fitted again");
+    assert_eq!(manifest()["fit_revisions"], json!(["0123456789ab", own]), "{}", manifest());
     // A rig made on other calibration frames is not reused.
     let rig_path = out.join("rig.json");
     let rig = std::fs::read_to_string(&rig_path).unwrap();

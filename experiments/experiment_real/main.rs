@@ -11,7 +11,9 @@
 //! Writes `results/scalarflow_real/`: `baselines.csv`, `settings.json` (the
 //! cameras and fit settings of every fit), `rig.json`, `fits.csv` (appended
 //! frame by frame: a stopped run with the same settings resumes), `summary.md`, `psnr_per_frame.svg`,
-//! `held_out_views.svg`, `density_slices.svg`, `manifest.json`.
+//! `held_out_views.svg`, `density_slices.svg`, `manifest.json` (with the
+//! revisions that fitted the rows it reports and the rig, where a resumed
+//! run kept an earlier one's).
 //! The capture is read from `--data` (never copied into the repository).
 
 mod figures;
@@ -26,6 +28,7 @@ use dualphoton::capture::{calibration, frames, protocol::Protocol, BoxChoice, Ca
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
+use dualphoton::io::manifest::UNRECORDED;
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -146,11 +149,16 @@ fn run(mut args: Args) -> Result<()> {
     }
     write_rows(&run.path("baselines.csv"), &rows)?;
     let mut md = summary(&rows, &test.name, &protocol);
+    let mut made_by = MadeBy::default();
     if !image_models.is_empty() {
         let views = run.path("views");
         let (fits, rig) =
             models::run(&capture, &roles, &scored, image_models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
+        made_by = MadeBy {
+            fits: models::revisions(&fits),
+            rig: rig.as_ref().map(|r| r.revision.clone().unwrap_or_else(|| UNRECORDED.into())),
+        };
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
              the held-out camera rendered at full resolution and scored as above. Mean over frames:\n\n",
@@ -167,7 +175,27 @@ fn run(mut args: Args) -> Result<()> {
         figures::compose(&args.out, &views, &names, test, &scored)?;
     }
     std::fs::write(run.path("summary.md"), md)?;
-    run.write_manifest(&args)
+    run.write_manifest(&Manifest { args: &args, made_by })
+}
+
+/// `manifest.json`: the arguments, and what made the fits it reports.
+#[derive(Serialize)]
+struct Manifest<'a> {
+    #[serde(flatten)]
+    args: &'a Args,
+    #[serde(flatten)]
+    made_by: MadeBy,
+}
+
+/// The revisions that made the reported rows of `fits.csv` and the rig: a
+/// resumed run keeps what an earlier one fitted, so they need not be the
+/// manifest's own `revision`.
+#[derive(Serialize, Default)]
+struct MadeBy {
+    #[serde(rename = "fit_revisions", skip_serializing_if = "Vec::is_empty")]
+    fits: Vec<String>,
+    #[serde(rename = "rig_revision", skip_serializing_if = "Option::is_none")]
+    rig: Option<String>,
 }
 
 /// Frames 0, 10, 20, ... below `count`, and the last.

@@ -16,13 +16,14 @@ use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::show_score;
+use dualphoton::io::manifest::{git_revision, UNRECORDED};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// One line of fits.csv.
-#[derive(Serialize, Deserialize, Clone)]
+#[derive(Serialize, Deserialize, Clone, Default)]
 pub struct FitResult {
     pub frame: usize,
     pub model: String,
@@ -97,6 +98,24 @@ pub struct FitResult {
     pub psnr_expected_db: Option<f64>,
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub rel_rmse_expected: Option<f64>,
+    /// The revision of the binary that fitted this row (`git_revision`;
+    /// empty in a row written before it was recorded): a resumed run's
+    /// rows may come from several.
+    #[serde(default)]
+    pub revision: String,
+}
+
+/// The revisions that fitted `rows`, each once, in the order they first
+/// appear ([`UNRECORDED`] for rows written before revisions were kept).
+pub fn revisions(rows: &[FitResult]) -> Vec<String> {
+    let mut seen: Vec<String> = Vec::new();
+    for r in rows {
+        let revision = if r.revision.is_empty() { UNRECORDED } else { r.revision.as_str() };
+        if !seen.iter().any(|s| s == revision) {
+            seen.push(revision.to_string());
+        }
+    }
+    seen
 }
 
 /// The rig, fitted under the model `settings` chose for it, in words and a
@@ -234,6 +253,7 @@ pub fn run(
                     rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
                     psnr_expected_db: expected.psnr,
                     rel_rmse_expected: expected.rel_rmse,
+                    revision: git_revision(),
                 };
                 eprintln!(
                     "frame {frame} {}: held-out PSNR {}, relative RMSE {} (expected view {}, {}), fit {:.0} s, \
@@ -405,4 +425,31 @@ pub fn plot(
     let title = format!("Held-out camera, {}", protocol.name());
     let axes = Axes { title: &title, x: "frame", y: "PSNR (dB)", log_x: false, log_y: false };
     line_chart(path, &axes, &series)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_resumed_table_names_each_revision_that_fitted_it_once() {
+        let row = |revision: &str| FitResult { revision: revision.into(), ..FitResult::default() };
+        let rows = [row(""), row("aaaaaaaaaaaa"), row("bbbbbbbbbbbb-dirty"), row("aaaaaaaaaaaa"), row("")];
+        assert_eq!(revisions(&rows), [UNRECORDED, "aaaaaaaaaaaa", "bbbbbbbbbbbb-dirty"]);
+    }
+
+    #[test]
+    fn rows_written_before_revisions_were_kept_read_as_unrecorded() {
+        let path = std::env::temp_dir().join(format!("dualphoton-fits-{}.csv", std::process::id()));
+        std::fs::write(
+            &path,
+            "frame,model,psnr_db,rel_rmse,train_rmse,train_noise,fit_s,render_s,lights,emission\n\
+                               0,multiple,36.7591,0.3487,0.005586,0.002594,12.4,0.3,0.0;1.0,7.4e-1\n",
+        )
+        .unwrap();
+        let rows: Vec<FitResult> = read_rows(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(revisions(&rows), [UNRECORDED]);
+        assert_eq!((rows[0].frame, rows[0].psnr_db), (0, Some(36.7591)));
+    }
 }

@@ -9,7 +9,7 @@ use super::rig::{calibration_frames, Rig};
 use super::settings::FitSettings;
 use super::Capture;
 use crate::error::{Error, Result};
-use crate::io::manifest::write_json;
+use crate::io::manifest::{write_json, UNRECORDED};
 use crate::math::Vec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -162,8 +162,13 @@ fn differences(mine: &serde_json::Value, theirs: &serde_json::Value, fits: bool)
 /// the training cameras and written there.
 pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) -> Result<Option<Rig>> {
     if path.exists() && base.aligns_once() {
-        eprintln!("rig: the training cameras' alignment taken from {}", path.display());
-        return read_rig(path, capture, roles, base).map(Some).map_err(|why| start_afresh(path, &why));
+        let rig = read_rig(path, capture, roles, base).map_err(|why| start_afresh(path, &why))?;
+        eprintln!(
+            "rig: the training cameras' alignment taken from {} (fitted by revision {})",
+            path.display(),
+            rig.revision.as_deref().unwrap_or(UNRECORDED)
+        );
+        return Ok(Some(rig));
     }
     let rig = fit_rig(capture, roles, base, None)?;
     if let Some(rig) = &rig {

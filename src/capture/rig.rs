@@ -23,6 +23,7 @@ use super::observe::{observe, Observed};
 use super::settings::{FitSettings, ImageModel};
 use super::Capture;
 use crate::error::Result;
+use crate::io::manifest::git_revision;
 use serde::{Deserialize, Serialize};
 
 /// One training camera's share of a rig.
@@ -70,6 +71,11 @@ pub struct Rig {
     /// ([`FitSettings::rig_lit_share`]) asked for that fit.
     #[serde(default)]
     pub lit_share: Option<f64>,
+    /// The revision of the binary that fitted it (`git_revision`: `-dirty`
+    /// where its tree was not clean; none in a rig written before it was
+    /// recorded), so that a run reusing it can say where it came from.
+    #[serde(default)]
+    pub revision: Option<String>,
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -161,7 +167,14 @@ impl Rig {
             let fits = (0..frames.len()).map(|i| fit_under(model, i, Some(&from))).collect::<Result<Vec<Fit>>>()?;
             cameras = medians(capture, training, &fits);
         }
-        Ok(Rig { frames, cameras, seconds: start.elapsed().as_secs_f64(), model: Some(model), lit_share })
+        Ok(Rig {
+            frames,
+            cameras,
+            seconds: start.elapsed().as_secs_f64(),
+            model: Some(model),
+            lit_share,
+            revision: Some(git_revision()),
+        })
     }
 
     /// The corrections a fit starts from, in the training cameras' order.
@@ -265,6 +278,7 @@ mod tests {
             seconds: 0.0,
             model: None,
             lit_share: None,
+            revision: None,
         };
         let fixed = rig.corrections();
         assert_eq!((fixed.offsets_px, fixed.zooms), (vec![[16.0, -8.0], [1.0, 2.0]], vec![1.05, 0.95]));

@@ -24,6 +24,10 @@ pub fn tree_clean() -> Option<bool> {
     }
 }
 
+/// Stands for the revision where a record predates it being kept (a
+/// resumed run's older rows, an older rig).
+pub const UNRECORDED: &str = "unrecorded";
+
 /// The revision this binary was built from, with `-dirty` if its tree was
 /// not clean: one word for small caches' manifests (reference renders).
 pub fn git_revision() -> String {

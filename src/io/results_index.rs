@@ -5,6 +5,7 @@
 //! when that file is out of date.
 
 use crate::error::{Error, Result};
+use crate::io::manifest::UNRECORDED;
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -36,7 +37,8 @@ pub fn markdown(results: &Path) -> Result<String> {
          `er` or `experiment_real_disc`, with `experiment_real`'s arguments. `probe`: the seconds a fixed \
          workload, the same at every revision, took on one thread of the machine as the run ended \
          (`speed_probe` in the manifest): wall times from machines whose probes differ compare only \
-         through it.\n\n\
+         through it. A run that resumed an earlier one's fits says which revisions fitted them \
+         (`fitted by`, from `fit_revisions` and `rig_revision`; `unrecorded` where rows predate them).\n\n\
          | folder | command | revision | clean | date | wall time | threads | probe |\n\
          |---|---|---|---|---|---|---|---|\n"
     );
@@ -64,13 +66,31 @@ fn row(m: &Value) -> Vec<String> {
     let probe = seconds(m.get("speed_probe").and_then(|p| p.get("one_thread_s")));
     vec![
         text("command").map_or(NONE.into(), |c| format!("`{}`", c.replace('|', "\\|").replace('`', "'"))),
-        revision.map_or(NONE.into(), |r| format!("`{r}`")),
+        revision.map_or(NONE.into(), |r| format!("`{r}`")) + &fitted_by(m, revision),
         clean.map_or(NONE.into(), |c| if c { "yes" } else { "no" }.into()),
         text("date").map_or(NONE, |d| d).into(),
         wall.map_or(NONE.into(), duration),
         m.get("threads").and_then(Value::as_u64).map_or(NONE.into(), |t| t.to_string()),
         probe.map_or(NONE.into(), |s| format!("{s:.3} s")),
     ]
+}
+
+/// Where a resumed run kept fits (or a rig) an earlier revision made
+/// (`fit_revisions`, `rig_revision`): `; fitted by` those revisions, each
+/// once; nothing where only the manifest's own `revision` made them.
+fn fitted_by(m: &Value, revision: Option<&str>) -> String {
+    let fits = m.get("fit_revisions").and_then(Value::as_array).into_iter().flatten();
+    let mut by: Vec<&str> = Vec::new();
+    for r in fits.chain(m.get("rig_revision")).filter_map(Value::as_str) {
+        if !by.contains(&r) {
+            by.push(r);
+        }
+    }
+    if by.is_empty() || by == [revision.unwrap_or_default()] {
+        return String::new();
+    }
+    let shown: Vec<String> = by.iter().map(|&r| if r == UNRECORDED { r.into() } else { format!("`{r}`") }).collect();
+    format!("; fitted by {}", shown.join(", "))
 }
 
 /// Seconds as a short duration: `4.2 s`, `95 s`, `1 h 05 min`.
@@ -121,6 +141,16 @@ mod tests {
             "speed_probe": {"one_thread_s": 0.0379801, "all_threads_s": 0.04}}));
         let want = ["`fig5 --dir a\\|b`", "`0123456789ab`", "yes", "2025-01-01T00:00:00Z", "4.3 s", "2", "0.038 s"];
         assert_eq!(new, want);
+    }
+
+    #[test]
+    fn a_resumed_run_names_the_revisions_that_fitted_its_rows() {
+        let own = row(&json!({"revision": "0123456789ab", "fit_revisions": ["0123456789ab"],
+            "rig_revision": "0123456789ab"}));
+        assert_eq!(own[1], "`0123456789ab`");
+        let resumed = row(&json!({"revision": "0123456789ab", "fit_revisions": ["unrecorded", "0123456789ab"],
+            "rig_revision": "ba9876543210-dirty"}));
+        assert_eq!(resumed[1], "`0123456789ab`; fitted by unrecorded, `0123456789ab`, `ba9876543210-dirty`");
     }
 
     #[test]
