@@ -66,7 +66,7 @@ fn row(m: &Value) -> Vec<String> {
     let probe = seconds(m.get("speed_probe").and_then(|p| p.get("one_thread_s")));
     vec![
         text("command").map_or(NONE.into(), |c| format!("`{}`", c.replace('|', "\\|").replace('`', "'"))),
-        revision.map_or(NONE.into(), |r| format!("`{r}`")) + &fitted_by(m, revision),
+        revision.map_or(NONE.into(), |r| format!("`{r}`")) + &fitted_by(m, revision, clean),
         clean.map_or(NONE.into(), |c| if c { "yes" } else { "no" }.into()),
         text("date").map_or(NONE, |d| d).into(),
         wall.map_or(NONE.into(), duration),
@@ -77,8 +77,9 @@ fn row(m: &Value) -> Vec<String> {
 
 /// Where a resumed run kept fits (or a rig) an earlier revision made
 /// (`fit_revisions`, `rig_revision`): `; fitted by` those revisions, each
-/// once; nothing where only the manifest's own `revision` made them.
-fn fitted_by(m: &Value, revision: Option<&str>) -> String {
+/// once; nothing where only the manifest's own `revision` made them (with
+/// `-dirty` where its tree was not `clean`, as `git_revision` writes it).
+fn fitted_by(m: &Value, revision: Option<&str>, clean: Option<bool>) -> String {
     let fits = m.get("fit_revisions").and_then(Value::as_array).into_iter().flatten();
     let mut by: Vec<&str> = Vec::new();
     for r in fits.chain(m.get("rig_revision")).filter_map(Value::as_str) {
@@ -86,7 +87,11 @@ fn fitted_by(m: &Value, revision: Option<&str>) -> String {
             by.push(r);
         }
     }
-    if by.is_empty() || by == [revision.unwrap_or_default()] {
+    let own = match (revision, clean) {
+        (Some(r), Some(false)) => format!("{r}-dirty"),
+        (r, _) => r.unwrap_or_default().to_string(),
+    };
+    if by.is_empty() || by == [own.as_str()] {
         return String::new();
     }
     let shown: Vec<String> = by.iter().map(|&r| if r == UNRECORDED { r.into() } else { format!("`{r}`") }).collect();
@@ -148,6 +153,9 @@ mod tests {
         let own = row(&json!({"revision": "0123456789ab", "fit_revisions": ["0123456789ab"],
             "rig_revision": "0123456789ab"}));
         assert_eq!(own[1], "`0123456789ab`");
+        let dirty = row(&json!({"revision": "0123456789ab", "tree_clean": false,
+            "fit_revisions": ["0123456789ab-dirty"], "rig_revision": "0123456789ab-dirty"}));
+        assert_eq!(dirty[1], "`0123456789ab`");
         let resumed = row(&json!({"revision": "0123456789ab", "fit_revisions": ["unrecorded", "0123456789ab"],
             "rig_revision": "ba9876543210-dirty"}));
         assert_eq!(resumed[1], "`0123456789ab`; fitted by unrecorded, `0123456789ab`, `ba9876543210-dirty`");
