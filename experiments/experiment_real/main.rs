@@ -28,7 +28,6 @@ use dualphoton::capture::{calibration, frames, protocol::Protocol, BoxChoice, Ca
 use dualphoton::error::{Error, Result};
 use dualphoton::experiment::{self, Run};
 use dualphoton::image::Image;
-use dualphoton::io::manifest::UNRECORDED;
 use dualphoton::io::rows::{fmt, markdown_table, write_rows};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -155,10 +154,7 @@ fn run(mut args: Args) -> Result<()> {
         let (fits, rig) =
             models::run(&capture, &roles, &scored, image_models, &fit_settings, &run.path("fits.csv"), &views)?;
         let fits: Vec<models::FitResult> = fits.into_iter().filter(|r| scored.contains(&r.frame)).collect();
-        made_by = MadeBy {
-            fits: models::revisions(&fits),
-            rig: rig.as_ref().map(|r| r.revision.clone().unwrap_or_else(|| UNRECORDED.into())),
-        };
+        made_by = MadeBy { fits: models::revisions(&fits), rig: rig.as_ref().map(|r| r.revision.clone()) };
         md += &format!(
             "\n## Reconstructions\n\nEach frame fitted on the training cameras ({}) under each image model, \
              the held-out camera rendered at full resolution and scored as above. Mean over frames:\n\n",

@@ -16,7 +16,7 @@ use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::show_score;
-use dualphoton::io::manifest::{git_revision, UNRECORDED};
+use dualphoton::io::manifest::{git_revision, unrecorded};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
@@ -99,20 +99,18 @@ pub struct FitResult {
     #[serde(default, serialize_with = "fmt::opt_f4")]
     pub rel_rmse_expected: Option<f64>,
     /// The revision of the binary that fitted this row (`git_revision`;
-    /// empty in a row written before it was recorded): a resumed run's
-    /// rows may come from several.
-    #[serde(default)]
+    /// `unrecorded` in a row written before it was recorded): a resumed
+    /// run's rows may come from several.
+    #[serde(default = "unrecorded")]
     pub revision: String,
 }
 
-/// The revisions that fitted `rows`, each once, in the order they first
-/// appear ([`UNRECORDED`] for rows written before revisions were kept).
+/// The revisions that fitted `rows`, each once, in the order they first appear.
 pub fn revisions(rows: &[FitResult]) -> Vec<String> {
     let mut seen: Vec<String> = Vec::new();
     for r in rows {
-        let revision = if r.revision.is_empty() { UNRECORDED } else { r.revision.as_str() };
-        if !seen.iter().any(|s| s == revision) {
-            seen.push(revision.to_string());
+        if !seen.contains(&r.revision) {
+            seen.push(r.revision.clone());
         }
     }
     seen
@@ -430,11 +428,13 @@ pub fn plot(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dualphoton::io::manifest::UNRECORDED;
 
     #[test]
     fn a_resumed_table_names_each_revision_that_fitted_it_once() {
         let row = |revision: &str| FitResult { revision: revision.into(), ..FitResult::default() };
-        let rows = [row(""), row("aaaaaaaaaaaa"), row("bbbbbbbbbbbb-dirty"), row("aaaaaaaaaaaa"), row("")];
+        let rows =
+            [row(UNRECORDED), row("aaaaaaaaaaaa"), row("bbbbbbbbbbbb-dirty"), row("aaaaaaaaaaaa"), row(UNRECORDED)];
         assert_eq!(revisions(&rows), [UNRECORDED, "aaaaaaaaaaaa", "bbbbbbbbbbbb-dirty"]);
     }
 

@@ -9,7 +9,7 @@ use super::rig::{calibration_frames, Rig};
 use super::settings::FitSettings;
 use super::Capture;
 use crate::error::{Error, Result};
-use crate::io::manifest::{write_json, UNRECORDED};
+use crate::io::manifest::write_json;
 use crate::math::Vec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -166,7 +166,7 @@ pub fn rig(capture: &Capture, roles: &Roles, base: &FitSettings, path: &Path) ->
         eprintln!(
             "rig: the training cameras' alignment taken from {} (fitted by revision {})",
             path.display(),
-            rig.revision.as_deref().unwrap_or(UNRECORDED)
+            rig.revision
         );
         return Ok(Some(rig));
     }

@@ -23,7 +23,7 @@ use super::observe::{observe, Observed};
 use super::settings::{FitSettings, ImageModel};
 use super::Capture;
 use crate::error::Result;
-use crate::io::manifest::git_revision;
+use crate::io::manifest::{git_revision, unrecorded};
 use serde::{Deserialize, Serialize};
 
 /// One training camera's share of a rig.
@@ -72,10 +72,10 @@ pub struct Rig {
     #[serde(default)]
     pub lit_share: Option<f64>,
     /// The revision of the binary that fitted it (`git_revision`: `-dirty`
-    /// where its tree was not clean; none in a rig written before it was
-    /// recorded), so that a run reusing it can say where it came from.
-    #[serde(default)]
-    pub revision: Option<String>,
+    /// where its tree was not clean; `unrecorded` in a rig written before it
+    /// was recorded), so that a run reusing it can say where it came from.
+    #[serde(default = "unrecorded")]
+    pub revision: String,
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -173,7 +173,7 @@ impl Rig {
             seconds: start.elapsed().as_secs_f64(),
             model: Some(model),
             lit_share,
-            revision: Some(git_revision()),
+            revision: git_revision(),
         })
     }
 
@@ -278,7 +278,7 @@ mod tests {
             seconds: 0.0,
             model: None,
             lit_share: None,
-            revision: None,
+            revision: crate::io::manifest::UNRECORDED.into(),
         };
         let fixed = rig.corrections();
         assert_eq!((fixed.offsets_px, fixed.zooms), (vec![[16.0, -8.0], [1.0, 2.0]], vec![1.05, 0.95]));
@@ -290,6 +290,7 @@ mod tests {
         let json = r#"{"frames": [19], "cameras": [{"name": "a", "offset_px": [1.0, 2.0], "zoom": 1.01}]}"#;
         let rig: Rig = serde_json::from_str(json).unwrap();
         assert_eq!(rig.cameras[0].gain, 1.0);
+        assert_eq!(rig.revision, crate::io::manifest::UNRECORDED);
     }
 
     #[test]

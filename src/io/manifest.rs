@@ -28,6 +28,11 @@ pub fn tree_clean() -> Option<bool> {
 /// resumed run's older rows, an older rig).
 pub const UNRECORDED: &str = "unrecorded";
 
+/// [`UNRECORDED`], as serde's default for a record's revision field.
+pub fn unrecorded() -> String {
+    UNRECORDED.into()
+}
+
 /// The revision this binary was built from, with `-dirty` if its tree was
 /// not clean: one word for small caches' manifests (reference renders).
 pub fn git_revision() -> String {
