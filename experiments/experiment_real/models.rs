@@ -16,7 +16,7 @@ use dualphoton::capture::settings::{FitSettings, ImageModel};
 use dualphoton::capture::Capture;
 use dualphoton::error::Result;
 use dualphoton::eval::metrics::show_score;
-use dualphoton::io::manifest::{git_revision, unrecorded};
+use dualphoton::io::manifest::{each_once, git_revision, unrecorded};
 use dualphoton::io::plot::{line_chart, Axes, Series};
 use dualphoton::io::rows::{fmt, markdown_table, read_rows, write_rows};
 use serde::{Deserialize, Serialize};
@@ -107,13 +107,7 @@ pub struct FitResult {
 
 /// The revisions that fitted `rows`, each once, in the order they first appear.
 pub fn revisions(rows: &[FitResult]) -> Vec<String> {
-    let mut seen: Vec<String> = Vec::new();
-    for r in rows {
-        if !seen.contains(&r.revision) {
-            seen.push(r.revision.clone());
-        }
-    }
-    seen
+    each_once(rows.iter().map(|r| r.revision.as_str())).into_iter().map(String::from).collect()
 }
 
 /// The rig, fitted under the model `settings` chose for it, in words and a

@@ -36,10 +36,27 @@ pub fn unrecorded() -> String {
 /// The revision this binary was built from, with `-dirty` if its tree was
 /// not clean: one word for small caches' manifests (reference renders).
 pub fn git_revision() -> String {
-    match tree_clean() {
-        Some(false) => format!("{REVISION}-dirty"),
-        _ => REVISION.to_string(),
+    revision_word(REVISION, tree_clean())
+}
+
+/// `revision` as one word: with `-dirty` where its tree was not `clean`.
+pub fn revision_word(revision: &str, clean: Option<bool>) -> String {
+    match clean {
+        Some(false) => format!("{revision}-dirty"),
+        _ => revision.to_string(),
     }
+}
+
+/// The revisions in `revisions`, each once, in the order they first appear
+/// (where a resumed run's records came from).
+pub fn each_once<'a>(revisions: impl IntoIterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut seen: Vec<&str> = Vec::new();
+    for r in revisions {
+        if !seen.contains(&r) {
+            seen.push(r);
+        }
+    }
+    seen
 }
 
 /// The command line as run: the program's file name and its arguments,

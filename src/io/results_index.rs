@@ -5,7 +5,7 @@
 //! when that file is out of date.
 
 use crate::error::{Error, Result};
-use crate::io::manifest::UNRECORDED;
+use crate::io::manifest::{each_once, revision_word, UNRECORDED};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -78,19 +78,11 @@ fn row(m: &Value) -> Vec<String> {
 /// Where a resumed run kept fits (or a rig) an earlier revision made
 /// (`fit_revisions`, `rig_revision`): `; fitted by` those revisions, each
 /// once; nothing where only the manifest's own `revision` made them (with
-/// `-dirty` where its tree was not `clean`, as `git_revision` writes it).
+/// `-dirty` where its tree was not `clean`, as [`revision_word`] writes it).
 fn fitted_by(m: &Value, revision: Option<&str>, clean: Option<bool>) -> String {
     let fits = m.get("fit_revisions").and_then(Value::as_array).into_iter().flatten();
-    let mut by: Vec<&str> = Vec::new();
-    for r in fits.chain(m.get("rig_revision")).filter_map(Value::as_str) {
-        if !by.contains(&r) {
-            by.push(r);
-        }
-    }
-    let own = match (revision, clean) {
-        (Some(r), Some(false)) => format!("{r}-dirty"),
-        (r, _) => r.unwrap_or_default().to_string(),
-    };
+    let by = each_once(fits.chain(m.get("rig_revision")).filter_map(Value::as_str));
+    let own = revision.map_or(String::new(), |r| revision_word(r, clean));
     if by.is_empty() || by == [own.as_str()] {
         return String::new();
     }
