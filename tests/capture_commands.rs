@@ -404,6 +404,11 @@ fn fit_takes_a_capture_and_renders_its_held_out_camera() {
     assert!((tried[0]..=tried[tried.len() - 1]).contains(&column("oracle_magnification")), "{quality}");
     // Against the same photograph a smaller error is a smaller relative RMSE.
     assert!(column("rel_rmse_oracle_aligned") <= column("rel_rmse"), "{quality}");
+    // The smoke itself through that error: the photograph moved back is
+    // closer to it than black, and perfect exactly when nothing was moved.
+    let exact = row[header.iter().position(|h| *h == "psnr_exact_smoke_db").unwrap()];
+    assert!((0.0..1.0).contains(&column("rel_rmse_exact_smoke")), "{quality}");
+    assert_eq!(exact.is_empty(), column("rel_rmse_exact_smoke") == 0.0, "{quality}");
 
     // The folder's rig taken by a later fit: not fitted again, and the fit
     // the same to the bit as with the rig fitted there.

@@ -6,7 +6,7 @@
 
 use super::fit::{fit, render_view, Fit, FitRow};
 use super::observe::{area_average, area_ceiling, check_light_outside_box, observe, Observed};
-use super::protocol::{Aligned, Oracle, Protocol, Score};
+use super::protocol::{Aligned, ExactSmoke, Oracle, Protocol, Score};
 use super::rig::Rig;
 use super::settings::FitSettings;
 use super::{first_repeat, frames, Capture, Frames};
@@ -111,6 +111,10 @@ pub struct HeldOutView {
     /// What aligning it as the training cameras are would change (a
     /// magnification and a shift found on its photograph; a diagnostic).
     pub aligned: Aligned,
+    /// What a reconstruction exact to the smoke would score through this
+    /// camera, were its calibration off by the error `aligned` found (a
+    /// diagnostic).
+    pub exact: ExactSmoke,
     /// Seconds its render took.
     pub render_s: f64,
 }
@@ -281,5 +285,6 @@ pub fn held_out_view(capture: &Capture, v: usize, fitted: &Fit, truth: &Image) -
     let oracle = Oracle::of(&seen, &photographed);
     let [_, _, cx, cy] = camera.intrinsics();
     let aligned = Aligned::of(&prediction, [cx, cy], &protocol, &photographed);
-    Ok(HeldOutView { view: v, prediction, score, oracle, aligned, render_s })
+    let exact = ExactSmoke::of(truth, &aligned, [cx, cy], &protocol);
+    Ok(HeldOutView { view: v, prediction, score, oracle, aligned, exact, render_s })
 }

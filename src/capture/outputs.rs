@@ -76,6 +76,14 @@ struct Quality {
     psnr_oracle_aligned_db: Option<f64>,
     #[serde(serialize_with = "fmt::opt_f4")]
     rel_rmse_oracle_aligned: Option<f64>,
+    /// What a reconstruction exact to the smoke would score through a
+    /// held-out camera off by that error (`super::protocol::ExactSmoke`):
+    /// its photograph moved back by the magnification and shift, PSNR and
+    /// relative RMSE. Empty for training cameras.
+    #[serde(serialize_with = "fmt::opt_f4")]
+    psnr_exact_smoke_db: Option<f64>,
+    #[serde(serialize_with = "fmt::opt_f4")]
+    rel_rmse_exact_smoke: Option<f64>,
 }
 
 /// The manifest's settings.
@@ -216,6 +224,8 @@ fn write(
             oracle_magnification: None,
             psnr_oracle_aligned_db: None,
             rel_rmse_oracle_aligned: None,
+            psnr_exact_smoke_db: None,
+            rel_rmse_exact_smoke: None,
         });
     }
     let single = result.held_out.len() == 1;
@@ -245,6 +255,8 @@ fn write(
             oracle_magnification: Some(held.aligned.magnification),
             psnr_oracle_aligned_db: held.aligned.score.psnr,
             rel_rmse_oracle_aligned: held.aligned.score.rel_rmse,
+            psnr_exact_smoke_db: held.exact.through_aligned.psnr,
+            rel_rmse_exact_smoke: held.exact.through_aligned.rel_rmse,
         });
         eprintln!(
             "held-out camera {}: PSNR {}, relative RMSE {} ({})",
@@ -257,10 +269,11 @@ fn write(
         eprintln!(
             "  moved by its best whole-pixel shift ({dx} right, {dy} down, in the protocol's pixels) it would \
              score {}, magnified {:.3} times and shifted {}: what a calibration error of the held-out camera \
-             costs (fit_quality.csv)",
+             costs (fit_quality.csv); the smoke itself, seen through a camera so far off, would score {}",
             show_score(held.oracle.with_shift.psnr, 1.0, 2, " dB"),
             held.aligned.magnification,
-            show_score(held.aligned.score.psnr, 1.0, 2, " dB")
+            show_score(held.aligned.score.psnr, 1.0, 2, " dB"),
+            show_score(held.exact.through_aligned.psnr, 1.0, 2, " dB")
         );
     }
     write_rows(&run.path("fit_quality.csv"), &quality)
