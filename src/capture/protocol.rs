@@ -157,14 +157,15 @@ impl Aligned {
     }
 }
 
-/// What a prediction exact to the smoke would score through a held-out
-/// camera whose calibration is off by the error [`Aligned`] found: its
-/// photograph moved back by that magnification and shift, scored against
-/// itself; and moved back by the magnification alone, for how much rests on
-/// the shift. A diagnostic like [`Aligned`], never used to choose anything:
-/// what the camera's error takes from any reconstruction that does not know
-/// it, however close to the smoke. (The bilinear move blurs the photograph
-/// a little, which flatters it.)
+/// What a prediction exact to the smoke (and in the camera's response)
+/// would score through a held-out camera whose calibration is off by the
+/// error [`Aligned`] found: its photograph moved back by that magnification
+/// and shift, scored against itself; and moved back by the magnification
+/// alone, a camera off by that only. A diagnostic like [`Aligned`], never
+/// used to choose anything: what the camera's error leaves a reconstruction
+/// that does not know it, however close to the smoke (a smoother one can
+/// score more: blur hedges against a misplaced camera). The bilinear move
+/// blurs the photograph a little, which flatters it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExactSmoke {
     /// Moved back by the magnification and the shift.
