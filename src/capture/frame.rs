@@ -285,6 +285,6 @@ pub fn held_out_view(capture: &Capture, v: usize, fitted: &Fit, truth: &Image) -
     let oracle = Oracle::of(&seen, &photographed);
     let [_, _, cx, cy] = camera.intrinsics();
     let aligned = Aligned::of(&prediction, [cx, cy], &protocol, &photographed);
-    let exact = ExactSmoke::of(truth, &aligned, [cx, cy], &protocol);
+    let exact = ExactSmoke::of(truth, &photographed, &aligned, [cx, cy], &protocol);
     Ok(HeldOutView { view: v, prediction, score, oracle, aligned, exact, render_s })
 }

@@ -175,16 +175,23 @@ pub struct ExactSmoke {
 }
 
 impl ExactSmoke {
-    /// From the photograph `truth` (full resolution), the camera's
-    /// `principal` point and the error `aligned` that [`Aligned::of`] found
-    /// under `protocol`.
-    pub fn of(truth: &Image, aligned: &Aligned, principal: [f64; 2], protocol: &Protocol) -> ExactSmoke {
+    /// From the photograph `truth` (full resolution) and `truth_view`, its
+    /// view under `protocol`, the camera's `principal` point and the error
+    /// `aligned` that [`Aligned::of`] found under `protocol`.
+    pub fn of(
+        truth: &Image,
+        truth_view: &Image,
+        aligned: &Aligned,
+        principal: [f64; 2],
+        protocol: &Protocol,
+    ) -> ExactSmoke {
         let factor = protocol.factor as f64;
-        let shift = aligned.shift.map(|s| factor * s as f64);
+        let score = |shift: [f64; 2]| {
+            Score::of(&protocol.view(&moved_back(truth, aligned.magnification, shift, principal)), truth_view)
+        };
         ExactSmoke {
-            through_aligned: protocol.score(&moved_back(truth, aligned.magnification, shift, principal), truth),
-            through_magnification: protocol
-                .score(&moved_back(truth, aligned.magnification, [0.0; 2], principal), truth),
+            through_aligned: score(aligned.shift.map(|s| factor * s as f64)),
+            through_magnification: score([0.0; 2]),
         }
     }
 }
@@ -418,19 +425,20 @@ mod tests {
         };
         let protocol = Protocol::for_size(w, h);
         let photograph = moved(&blob, 1.025, [4.0, -6.0], principal);
-        let found = Aligned::of(&blob, principal, &protocol, &protocol.view(&photograph));
+        let photographed = protocol.view(&photograph);
+        let found = Aligned::of(&blob, principal, &protocol, &photographed);
         assert_eq!((found.magnification, found.shift), (1.025, [2, -3]), "{found:?}");
         let back = moved_back(&photograph, found.magnification, [4.0, -6.0], principal);
         let worst = back.data.iter().zip(&blob.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(worst < 0.02, "moved back, the photograph is the blob: worst pixel {worst}");
-        let exact = ExactSmoke::of(&photograph, &found, principal, &protocol);
+        let exact = ExactSmoke::of(&photograph, &photographed, &found, principal, &protocol);
         let blob_score = protocol.score(&blob, &photograph).psnr.unwrap();
         assert!((exact.through_aligned.psnr.unwrap() - blob_score).abs() < 0.5, "{exact:?} against {blob_score}");
         // Far from perfect, and the magnification alone leaves the shift's error.
         assert!(blob_score < 30.0, "{blob_score}");
         assert!(exact.through_magnification.psnr.unwrap() > blob_score + 1.0, "{exact:?}");
         let none = Aligned { magnification: 1.0, shift: [0, 0], score: found.score };
-        assert_eq!(ExactSmoke::of(&photograph, &none, principal, &protocol).through_aligned.psnr, None);
+        assert_eq!(ExactSmoke::of(&photograph, &photographed, &none, principal, &protocol).through_aligned.psnr, None);
     }
 
     #[test]
