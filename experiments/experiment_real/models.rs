@@ -9,7 +9,7 @@ use dualphoton::capture::expected_view;
 use dualphoton::capture::fit::training_rmse;
 use dualphoton::capture::frame::{self, fit_frame, Roles};
 use dualphoton::capture::observe::temporal_noise;
-use dualphoton::capture::protocol::{Protocol, ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
+use dualphoton::capture::protocol::{Protocol, ORACLE_FINEST_STEPS, ORACLE_MAGNIFICATIONS, ORACLE_SHIFT_PX};
 use dualphoton::capture::reuse;
 use dualphoton::capture::rig::Rig;
 use dualphoton::capture::settings::{FitSettings, ImageModel};
@@ -394,9 +394,11 @@ fn oracle_table(rows: &[FitResult], models: &[ImageModel]) -> String {
          the held-out view scaled by its least-squares gain onto the photograph, or moved by the best \
          whole-pixel shift (at most {ORACLE_SHIFT_PX} pixels of the protocol's view each way), or aligned as \
          the training cameras are (the best magnification about its principal point, {:.2} to {:.2}, and the \
-         best shift after it). Mean over frames:\n\n",
+         best shift after it, to {} in magnification and {} of the view's pixel). Mean over frames:\n\n",
         ORACLE_MAGNIFICATIONS[0],
-        ORACLE_MAGNIFICATIONS[ORACLE_MAGNIFICATIONS.len() - 1]
+        ORACLE_MAGNIFICATIONS[ORACLE_MAGNIFICATIONS.len() - 1],
+        ORACLE_FINEST_STEPS[0],
+        ORACLE_FINEST_STEPS[1]
     ) + &markdown_table(
         &[
             "image model",

@@ -115,19 +115,26 @@ pub const ORACLE_MAGNIFICATIONS: [f64; 21] = [
     1.04, 1.045, 1.05,
 ];
 
+/// The finest steps [`Aligned`] refines its grid's best to: a
+/// magnification of 0.0005 (a tenth of the grid's step) and an eighth of a
+/// pixel of the protocol's view. Its search starts at four times these.
+pub const ORACLE_FINEST_STEPS: [f64; 2] = [0.0005, 0.125];
+
 /// What a prediction would score had the held-out camera been aligned as
 /// the training cameras are (its focal lengths scaled about its principal
-/// point, and the best whole-pixel shift of the protocol's view after it),
-/// found on its own photograph. A diagnostic like [`Oracle`], never used to
-/// choose anything: it says how much of the held-out error a calibration
-/// error of that camera, of the size the training cameras' own corrections
-/// have, would explain.
+/// point, and its principal point moved after it), found on its own
+/// photograph: the best of a grid of magnifications and whole-pixel shifts
+/// of the protocol's view, refined to [`ORACLE_FINEST_STEPS`]. A diagnostic
+/// like [`Oracle`], never used to choose anything: it says how much of the
+/// held-out error a calibration error of that camera, of the size the
+/// training cameras' own corrections have, would explain.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aligned {
-    /// The best of [`ORACLE_MAGNIFICATIONS`].
+    /// The best magnification, within [`ORACLE_MAGNIFICATIONS`]' range.
     pub magnification: f64,
-    /// The best shift after it (right, down), in the view's pixels.
-    pub shift: [i64; 2],
+    /// The best shift after it (right, down), in the view's pixels, at most
+    /// [`ORACLE_SHIFT_PX`] each way.
+    pub shift: [f64; 2],
     /// The score with both.
     pub score: Score,
 }
@@ -136,25 +143,81 @@ impl Aligned {
     /// The best magnification of `prediction` (full resolution) about
     /// `principal` (its camera's principal point, in its pixels) and the best
     /// shift after it, scored under `protocol` against `truth_view` (the
-    /// photograph's view under it). Ties go to the magnification nearest 1.
+    /// photograph's view under it). On the grid, ties go to the
+    /// magnification nearest 1.
     pub fn of(prediction: &Image, principal: [f64; 2], protocol: &Protocol, truth_view: &Image) -> Aligned {
-        let tried: Vec<Aligned> = ORACLE_MAGNIFICATIONS
+        let tried: Vec<(f64, Oracle)> = ORACLE_MAGNIFICATIONS
             .par_iter()
-            .map(|&k| {
-                let oracle = Oracle::of(&protocol.view(&magnified(prediction, k, principal)), truth_view);
-                Aligned { magnification: k, shift: oracle.shift, score: oracle.with_shift }
-            })
+            .map(|&k| (k, Oracle::of(&protocol.view(&magnified(prediction, k, principal)), truth_view)))
             .collect();
         // Chosen in order, as the shifts are.
-        tried
+        let (k, grid) = tried
             .into_iter()
-            .min_by(|a, b| {
-                mse_of(&a.score)
-                    .total_cmp(&mse_of(&b.score))
-                    .then((a.magnification - 1.0).abs().total_cmp(&(b.magnification - 1.0).abs()))
+            .min_by(|(ka, a), (kb, b)| {
+                mse_of(&a.with_shift)
+                    .total_cmp(&mse_of(&b.with_shift))
+                    .then((ka - 1.0).abs().total_cmp(&(kb - 1.0).abs()))
             })
-            .expect("at least one magnification")
+            .expect("at least one magnification");
+        refined(prediction, principal, protocol, truth_view, k, grid.shift)
     }
+}
+
+/// The grid's best (`magnification`, `shift`) refined by a pattern search:
+/// each unknown moved up and down by its step, the best move taken while it
+/// lowers the error, the steps halved from four times
+/// [`ORACLE_FINEST_STEPS`] to them. The shift now moves the full-resolution
+/// image with the magnification, so it may be a fraction of the view's
+/// pixel; the grid's whole-pixel shifts of the view are the same but for
+/// what they bring in across the crop's edge.
+fn refined(
+    prediction: &Image,
+    principal: [f64; 2],
+    protocol: &Protocol,
+    truth_view: &Image,
+    magnification: f64,
+    shift: [i64; 2],
+) -> Aligned {
+    let [k_step, shift_step] = ORACLE_FINEST_STEPS;
+    // Counted in finest steps from the grid's best, so that every value tried is the same sum.
+    let at = |[nk, nx, ny]: [i64; 3]| {
+        let shift = [shift[0] as f64 + nx as f64 * shift_step, shift[1] as f64 + ny as f64 * shift_step];
+        (magnification + nk as f64 * k_step, shift)
+    };
+    let (k_min, k_max) = (ORACLE_MAGNIFICATIONS[0], ORACLE_MAGNIFICATIONS[ORACLE_MAGNIFICATIONS.len() - 1]);
+    let within = |n: [i64; 3]| {
+        let (k, [dx, dy]) = at(n);
+        let r = ORACLE_SHIFT_PX as f64;
+        k >= k_min - 1e-12 && k <= k_max + 1e-12 && dx.abs() <= r && dy.abs() <= r
+    };
+    let factor = protocol.factor as f64;
+    let score_at = |n: [i64; 3]| {
+        let (k, [dx, dy]) = at(n);
+        Score::of(&protocol.view(&moved(prediction, k, [factor * dx, factor * dy], principal)), truth_view)
+    };
+    let (mut best, mut best_score) = ([0; 3], score_at([0; 3]));
+    for stride in [4, 2, 1] {
+        loop {
+            let tried: Vec<[i64; 3]> = (0..3)
+                .flat_map(|axis| {
+                    [-stride, stride].map(|d| {
+                        let mut n = best;
+                        n[axis] += d;
+                        n
+                    })
+                })
+                .filter(|&n| within(n))
+                .collect();
+            // Scored in parallel, chosen in order: the first of equal ones.
+            let scores: Vec<Score> = tried.par_iter().map(|&n| score_at(n)).collect();
+            match tried.into_iter().zip(scores).min_by(|a, b| mse_of(&a.1).total_cmp(&mse_of(&b.1))) {
+                Some((n, score)) if mse_of(&score) < mse_of(&best_score) => (best, best_score) = (n, score),
+                _ => break,
+            }
+        }
+    }
+    let (magnification, shift) = at(best);
+    Aligned { magnification, shift, score: best_score }
 }
 
 /// What a prediction exact to the smoke (and in the camera's response)
@@ -189,10 +252,7 @@ impl ExactSmoke {
         let score = |shift: [f64; 2]| {
             Score::of(&protocol.view(&moved_back(truth, aligned.magnification, shift, principal)), truth_view)
         };
-        ExactSmoke {
-            through_aligned: score(aligned.shift.map(|s| factor * s as f64)),
-            through_magnification: score([0.0; 2]),
-        }
+        ExactSmoke { through_aligned: score(aligned.shift.map(|s| factor * s)), through_magnification: score([0.0; 2]) }
     }
 }
 
@@ -398,11 +458,45 @@ mod tests {
         let truth = protocol.view(&blob(1.025));
         let small = blob(1.0);
         let found = Aligned::of(&small, principal, &protocol, &truth);
-        assert_eq!((found.magnification, found.shift), (1.025, [0, 0]), "{found:?}");
+        assert!(near(&found, 1.025, [0.0, 0.0], 0.0005, 0.125), "{found:?}");
         let plain = Score::of(&protocol.view(&small), &truth).psnr.unwrap();
         assert!(found.score.psnr.unwrap() > plain + 20.0, "{found:?} against {plain}");
         assert_eq!(Aligned::of(&blob(1.0), principal, &protocol, &protocol.view(&blob(1.0))).magnification, 1.0);
         assert_eq!(magnified(&small, 1.0, principal), small, "a magnification of 1 changes nothing");
+    }
+
+    /// Whether `found` is within `k_tol` of magnification `k` and within
+    /// `shift_tol` view pixels of `shift` along each axis.
+    fn near(found: &Aligned, k: f64, shift: [f64; 2], k_tol: f64, shift_tol: f64) -> bool {
+        (found.magnification - k).abs() <= k_tol + 1e-9
+            && found.shift.iter().zip(shift).all(|(a, b)| (a - b).abs() <= shift_tol + 1e-9)
+    }
+
+    /// An error between the grid's points, a magnification of 1.0215 and a
+    /// shift of (1.375, -0.625) view pixels: the refinement finds it closer
+    /// than the grid's nearest point (1.02 and (1, -1)) could be. Two blobs
+    /// apart, as a plume's foot and top are: one alone could trade the
+    /// magnification for a shift.
+    #[test]
+    fn the_aligned_oracle_refines_between_its_grid_points() {
+        let (w, h) = (160, 120);
+        let principal = [80.0, 60.0];
+        let blob = Image {
+            width: w,
+            height: h,
+            data: (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+                    let at = |cx: f64, cy: f64| (-((x - cx).powi(2) + (y - cy).powi(2)) / 60.0).exp();
+                    at(110.0, 85.0) + at(50.0, 30.0)
+                })
+                .collect(),
+        };
+        let protocol = Protocol::for_size(w, h);
+        let photographed = protocol.view(&moved(&blob, 1.0215, [2.75, -1.25], principal));
+        let found = Aligned::of(&blob, principal, &protocol, &photographed);
+        assert!(near(&found, 1.0215, [1.375, -0.625], 0.001, 0.25), "{found:?}");
+        assert!(found.score.psnr.is_none_or(|p| p > 50.0), "{found:?}");
     }
 
     /// A photograph of a blob seen 2.5 % magnified and moved by (2, -3)
@@ -427,7 +521,7 @@ mod tests {
         let photograph = moved(&blob, 1.025, [4.0, -6.0], principal);
         let photographed = protocol.view(&photograph);
         let found = Aligned::of(&blob, principal, &protocol, &photographed);
-        assert_eq!((found.magnification, found.shift), (1.025, [2, -3]), "{found:?}");
+        assert!(near(&found, 1.025, [2.0, -3.0], 0.0005, 0.125), "{found:?}");
         let back = moved_back(&photograph, found.magnification, [4.0, -6.0], principal);
         let worst = back.data.iter().zip(&blob.data).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(worst < 0.02, "moved back, the photograph is the blob: worst pixel {worst}");
@@ -437,7 +531,7 @@ mod tests {
         // Far from perfect, and the magnification alone leaves the shift's error.
         assert!(blob_score < 30.0, "{blob_score}");
         assert!(exact.through_magnification.psnr.unwrap() > blob_score + 1.0, "{exact:?}");
-        let none = Aligned { magnification: 1.0, shift: [0, 0], score: found.score };
+        let none = Aligned { magnification: 1.0, shift: [0.0, 0.0], score: found.score };
         assert_eq!(ExactSmoke::of(&photograph, &photographed, &none, principal, &protocol).through_aligned.psnr, None);
     }
 
