@@ -472,6 +472,18 @@ mod tests {
             && found.shift.iter().zip(shift).all(|(a, b)| (a - b).abs() <= shift_tol + 1e-9)
     }
 
+    /// A `w` x `h` image of Gaussian blobs of height 1 at `centres` (pixel units).
+    fn blobs(w: usize, h: usize, centres: &[[f64; 2]]) -> Image {
+        let value = |x: f64, y: f64| -> f64 {
+            centres.iter().map(|[cx, cy]| (-((x - cx).powi(2) + (y - cy).powi(2)) / 60.0).exp()).sum()
+        };
+        Image {
+            width: w,
+            height: h,
+            data: (0..w * h).map(|i| value((i % w) as f64 + 0.5, (i / w) as f64 + 0.5)).collect(),
+        }
+    }
+
     /// An error between the grid's points, a magnification of 1.0215 and a
     /// shift of (1.375, -0.625) view pixels: the refinement finds it closer
     /// than the grid's nearest point (1.02 and (1, -1)) could be. Two blobs
@@ -481,17 +493,7 @@ mod tests {
     fn the_aligned_oracle_refines_between_its_grid_points() {
         let (w, h) = (160, 120);
         let principal = [80.0, 60.0];
-        let blob = Image {
-            width: w,
-            height: h,
-            data: (0..w * h)
-                .map(|i| {
-                    let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
-                    let at = |cx: f64, cy: f64| (-((x - cx).powi(2) + (y - cy).powi(2)) / 60.0).exp();
-                    at(110.0, 85.0) + at(50.0, 30.0)
-                })
-                .collect(),
-        };
+        let blob = blobs(w, h, &[[110.0, 85.0], [50.0, 30.0]]);
         let protocol = Protocol::for_size(w, h);
         let photographed = protocol.view(&moved(&blob, 1.0215, [2.75, -1.25], principal));
         let found = Aligned::of(&blob, principal, &protocol, &photographed);
@@ -507,16 +509,7 @@ mod tests {
     fn the_exact_smoke_is_the_photograph_moved_back() {
         let (w, h) = (160, 120);
         let principal = [80.0, 60.0];
-        let blob = Image {
-            width: w,
-            height: h,
-            data: (0..w * h)
-                .map(|i| {
-                    let (x, y) = ((i % w) as f64 + 0.5 - 110.0, (i / w) as f64 + 0.5 - 80.0);
-                    (-(x * x + y * y) / 60.0).exp()
-                })
-                .collect(),
-        };
+        let blob = blobs(w, h, &[[110.0, 80.0]]);
         let protocol = Protocol::for_size(w, h);
         let photograph = moved(&blob, 1.025, [4.0, -6.0], principal);
         let photographed = protocol.view(&photograph);
