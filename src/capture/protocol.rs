@@ -179,7 +179,7 @@ fn refined(
     shift: [i64; 2],
 ) -> Aligned {
     let [k_step, shift_step] = ORACLE_FINEST_STEPS;
-    // Counted in finest steps from the grid's best, so that every value tried is the same sum.
+    // Counted in finest steps from the grid's best: a value reached by two paths is one number.
     let at = |[nk, nx, ny]: [i64; 3]| {
         let shift = [shift[0] as f64 + nx as f64 * shift_step, shift[1] as f64 + ny as f64 * shift_step];
         (magnification + nk as f64 * k_step, shift)
