@@ -268,7 +268,7 @@ fn write(
         let [dx, dy] = held.oracle.shift;
         eprintln!(
             "  moved by its best whole-pixel shift ({dx} right, {dy} down, in the protocol's pixels) it would \
-             score {}, magnified {:.3} times and shifted {}: what a calibration error of the held-out camera \
+             score {}, magnified {:.4} times and shifted {}: what a calibration error of the held-out camera \
              costs (fit_quality.csv); the smoke itself, seen through a camera so far off, would score {}",
             show_score(held.oracle.with_shift.psnr, 1.0, 2, " dB"),
             held.aligned.magnification,
